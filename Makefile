@@ -1,0 +1,32 @@
+# Two commands do all set-up: `make demo` and `make test`.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+DEMO_OUT ?= demo-out
+
+.PHONY: demo test test-fast bench clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $(STAMP)
+
+# Build the demo dataset from the built-in synthetic corpus (no downloads), then summarise it.
+demo: $(STAMP)
+	$(BIN)/tsel generate --preset demo --out $(DEMO_OUT) --resume
+	@echo "demo dataset: $(DEMO_OUT)/dataset.json"
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+# Everything but the slow end-to-end tests.
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -q -m "not slow"
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_simulated.py
+
+clean:
+	rm -rf $(DEMO_OUT) .pytest_cache

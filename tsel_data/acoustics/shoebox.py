@@ -1,0 +1,248 @@
+"""The project's shoebox simulator: calibrated image sources, diffuse late tail, FOA.
+
+``shoebox_rirs(room, array, points, fs, method, seed)`` returns RIRs [S, C, L] with
+sample 0 at the emission time and the direct path of a point r metres away at
+r / c · fs samples with amplitude 1 / (4π r) (pyroomacoustics' scale).
+
+Methods (docs/acoustics.md):
+
+- ``ism``: every image source up to the RIR length, one reflection coefficient
+  β = exp(-a) for all walls; ``a`` is fitted so that the T30 of the image energy of the
+  first point at channel 0 equals ``room.rt60`` (the energy histogram per reflection
+  order is computed once, so each fit step is one matrix-vector product).
+- ``hybrid`` (default): image sources up to a transition time (80 ms, later if a source
+  is far), then Gaussian noise with diffuse-field coherence (late.py) whose energy
+  envelope continues the expected image-source energy at the transition and decays with
+  exactly ``room.rt60``. A 10 ms power-complementary cross-fade joins them.
+
+Formats: ``mic4`` and ``tetra`` are omnidirectional capsules at the array's channel
+positions (``tetra`` as an open sphere: its rigid-sphere scattering is not modelled);
+``foa`` encodes every image source with the ACN/SN3D gains of its direction in the array
+frame, and its tail has uncorrelated W, Y, Z, X with energies 1 : 1/3 : 1/3 : 1/3.
+Pure numpy: no pyroomacoustics code, threads or global random state.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from scipy.signal import butter, sosfilt
+
+from ..errors import GeometryError
+from ..geometry import array_to_room
+from . import SOUND_SPEED, RirSet
+from .ism import FD_TAPS, add_impulses, decay_model, fd_energy_gain, grid_to_signal, image_chunks, model_edc, new_grid
+from .late import diffuse_noise
+from .metrics import decay_time, t30
+
+METHODS = ("hybrid", "ism")
+TRANSITION = 0.080  # s, hybrid: image sources before, diffuse tail after
+FADE = 0.010  # s, cross-fade width around the transition
+HIGHPASS = 20.0  # Hz, DC blocker on the image-source part (see _dc_blocker)
+_HIST_BIN = 0.001  # s, time resolution of the energy histogram used by the ism fit
+
+
+def shoebox_rirs(
+    room,
+    array,
+    points: np.ndarray,
+    fs: int,
+    method: str = "hybrid",
+    seed: int = 0,
+    *,
+    max_order: int | None = None,
+    transition: float | None = None,
+    length: float | None = None,
+) -> RirSet:
+    """RIRs from room-frame ``points`` [S, 3] (m) to the channels of ``array``.
+
+    room: :class:`~tsel_data.recipe.Room` (dims m, rt60 s). array:
+    :class:`~tsel_data.recipe.ArrayPose`. fs: Hz. method: ``hybrid`` | ``ism``. seed:
+    the late tail's noise (numpy Generator; ``ism`` is deterministic anyway).
+    max_order: keep image sources with at most this many reflections (0 = free field);
+    a finite order also drops the hybrid tail. transition: hybrid transition time (s),
+    default max(80 ms, latest direct path + 20 ms). length: RIR length (s), default the
+    latest direct path + rt60 (the decay has reached about -60 dB).
+
+    Returns a :class:`RirSet` with float32 rirs [S, C, L] and ``rt60_measured`` = T30 of
+    point 0, channel 0 (omni / W), or None when the response is too short to measure.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown shoebox method {method!r}; expected one of {METHODS}")
+    dims = np.asarray(room.dims, dtype=np.float64)
+    rt60 = float(room.rt60)
+    points = np.atleast_2d(np.asarray(points, dtype=np.float64))
+    if not (np.all(dims > 0) and rt60 > 0):
+        raise GeometryError(f"room {dims.tolist()} with RT60 {rt60} s: dimensions and RT60 must be positive")
+    centre = np.asarray(array.centre, dtype=np.float64)
+    foa = array.format == "foa"
+    mics = array_to_room(array.mics(), centre, array.yaw)  # [C, 3], room frame
+    _check_points(points, mics, dims)
+    c = SOUND_SPEED
+
+    dist = np.linalg.norm(points - centre, axis=1)
+    t_direct = float(dist.max()) / c
+    if length is None:
+        length = t_direct + (rt60 if max_order != 0 else 0.0) + 0.005
+    n_len = int(np.ceil(length * fs))
+    a = ism_absorption(dims, rt60)
+    aperture = float(np.linalg.norm(mics - centre, axis=1).max())
+    with_tail = method == "hybrid" and max_order is None
+    if with_tail:
+        t_mix = transition if transition is not None else max(TRANSITION, t_direct + 0.020)
+        with_tail = t_mix - FADE / 2 < n_len / fs
+    if with_tail:
+        t_img = t_mix + FADE / 2
+    else:
+        t_img = n_len / fs
+        if method == "ism" and max_order is None:
+            a = fit_ism_absorption(dims, rt60, points[0], mics[0] if not foa else centre, t_img, a)
+    radius = c * t_img + aperture
+    fade = (t_mix, FADE) if with_tail else None
+
+    # the image part only needs to be as long as the last image (plus the filter)
+    n_img = min(n_len, int(np.ceil(t_img * fs)) + FD_TAPS)
+    rirs = np.zeros((len(points), len(mics), n_len), dtype=np.float32)
+    for s, p in enumerate(points):
+        grid = new_grid(len(mics), n_img)
+        for pos, order in image_chunks(dims, p, centre, radius, max_order):
+            amp = np.exp(-a * order)
+            if foa:
+                _add_foa(grid, pos, amp, centre, array.yaw, fs, fade)
+            else:
+                for ch, m in enumerate(mics):
+                    r = np.linalg.norm(pos - m, axis=1)
+                    _add(grid, ch, r / c, amp / (4 * np.pi * r), fs, fade)
+        rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), grid_to_signal(grid), axis=-1)
+
+    if with_tail:
+        rirs += _late_tail(np.random.default_rng(seed), dims, a, rt60, mics, foa, fs, n_len, t_mix, len(points))
+    measured = t30(rirs[0, 0], fs) if max_order != 0 else float("nan")
+    return RirSet(rirs, None if np.isnan(measured) else measured)
+
+
+# --- absorption ---------------------------------------------------------------------
+def ism_absorption(dims, rt60: float, c: float = SOUND_SPEED) -> float:
+    """Image-source attenuation a (per reflection, β = exp(-a)) whose expected energy
+    decay (:func:`~tsel_data.acoustics.ism.decay_model`) has a T30 of ``rt60``.
+
+    The model depends on time only through x = 2 a c t, so T30 = X30 / (2 a c) where X30
+    is the T30 of the model's Schroeder curve measured in x; one evaluation fixes a.
+    """
+    dims = np.asarray(dims, dtype=np.float64)
+    # g(u) ≥ 1 / Lmax, so by x = 10 ln(10) Lmax the curve is well below -35 dB
+    x = np.linspace(0.0, 10.0 * np.log(10.0) * dims.max(), 256)
+    curve = model_edc(dims, x)
+    x30 = decay_time(10.0 * np.log10(curve / curve[0]), x[1] - x[0])
+    return float(x30 / (2.0 * c * rt60))
+
+
+def fit_ism_absorption(dims, rt60: float, source, receiver, t_max: float, a0: float, c: float = SOUND_SPEED) -> float:
+    """Refine ``a0`` on the actual image set from ``source`` to ``receiver`` (room frame).
+
+    The energy arriving in each 1 ms bin is ``Σ_n H[bin, n] exp(-2 a n)`` with
+    ``H[bin, n] = Σ 1 / (4π r)²`` over images of order n (direct sound included), so each
+    step costs one small matrix-vector product. Fixed-point iteration
+    a ← a · T30(a) / rt60 (T30 ∝ 1/a in the continuum model) converges in a few steps.
+    """
+    n_bins = int(np.ceil(t_max / _HIST_BIN))
+    radius = c * t_max
+    # an image within `radius` has at most radius / L + 2 reflections per axis
+    n_cols = int(sum(np.ceil(radius / d) + 2 for d in np.asarray(dims, dtype=np.float64))) + 1
+    h = np.zeros(n_bins * n_cols)
+    for pos, order in image_chunks(dims, source, receiver, radius):
+        r = np.maximum(np.linalg.norm(pos - receiver, axis=1), 1e-3)
+        b = np.minimum((r / c / _HIST_BIN).astype(np.int64), n_bins - 1)
+        h += np.bincount(b * n_cols + order, 1.0 / (16 * np.pi**2 * r * r), minlength=n_bins * n_cols)
+    h = h.reshape(n_bins, n_cols)
+    orders = np.arange(n_cols)
+    a = a0
+    for _ in range(8):
+        energy = h @ np.exp(-2.0 * a * orders)
+        tail = np.cumsum(energy[::-1])[::-1]
+        with np.errstate(divide="ignore"):
+            measured = decay_time(10 * np.log10(tail / tail[0]), _HIST_BIN)
+        if not np.isfinite(measured):
+            break
+        ratio = measured / rt60
+        a *= ratio
+        if abs(ratio - 1.0) < 0.002:
+            break
+    return float(a)
+
+
+# --- rendering helpers ----
+@lru_cache(maxsize=8)
+def _dc_blocker(fs: int) -> np.ndarray:
+    """2nd-order Butterworth high-pass at HIGHPASS Hz (second-order sections), causal.
+
+    All image sources of rigid-phase walls have the same sign, so once there are many
+    per sample their sum carries a slowly varying positive offset whose energy grows
+    with the image density (∝ t²) and lengthens T30 by 20-30 %. Real walls and
+    microphones have no such DC path; Allen & Berkley (1979) high-pass their image RIRs
+    for the same reason. Causal, so sample 0 stays the emission time (the direct path
+    peak is scaled by b0 ≈ 0.996 at 24 kHz)."""
+    return butter(2, HIGHPASS, "highpass", fs=fs, output="sos")
+
+
+def _fade_out(t: np.ndarray, fade) -> np.ndarray | float:
+    """Power-complementary cross-fade: images get cos, the tail sin, of π/2 · ρ(t)."""
+    if fade is None:
+        return 1.0
+    t_mix, width = fade
+    rho = np.clip((t - (t_mix - width / 2)) / width, 0.0, 1.0)
+    return np.cos(0.5 * np.pi * rho)
+
+
+def _add(grid, ch, t, amp, fs, fade) -> None:
+    add_impulses(grid, ch, t * fs, amp * _fade_out(t, fade))
+
+
+def _add_foa(grid, pos, amp, centre, yaw, fs, fade) -> None:
+    """Encode images at ``pos`` [N, 3] (room frame) into W, Y, Z, X (ACN/SN3D) of an
+    array at ``centre`` turned by ``yaw`` degrees: gains 1, u_y, u_z, u_x of the unit
+    direction u in the array frame (DESIGN.md)."""
+    v = pos - centre
+    r = np.linalg.norm(v, axis=1)
+    c, s = np.cos(np.radians(yaw)), np.sin(np.radians(yaw))
+    ux = (c * v[:, 0] + s * v[:, 1]) / r  # Rz(-yaw) v
+    uy = (-s * v[:, 0] + c * v[:, 1]) / r
+    uz = v[:, 2] / r
+    t = r / SOUND_SPEED
+    w = amp / (4 * np.pi * r) * _fade_out(t, fade)
+    for ch, g in enumerate((None, uy, uz, ux)):
+        add_impulses(grid, ch, t * fs, w if g is None else w * g)
+
+
+def _late_tail(rng, dims, a, rt60, mics, foa, fs, n_len, t_mix, n_points) -> np.ndarray:
+    """Diffuse tails [S, C, n_len] (float32): zero before the cross-fade, then noise with
+    variance η E(t_mix) / fs at t_mix decaying by 60 dB per rt60, faded in by sin.
+
+    E(t) = c / (16 π² V) ∫ exp(-2 a c t g(u)) dΩ is the expected image energy rate
+    (ism.decay_model), η the share of an impulse's energy the fractional-delay
+    interpolator keeps, so the tail continues the image sources without a level step.
+    """
+    c = SOUND_SPEED
+    start = int(np.floor((t_mix - FADE / 2) * fs))
+    n = n_len - start
+    t = (start + np.arange(n)) / fs
+    e_mix = c / (16 * np.pi**2 * np.prod(dims)) * float(decay_model(dims, 2 * a * c * t_mix))
+    rho = np.clip((t - (t_mix - FADE / 2)) / FADE, 0.0, 1.0)
+    env = np.sqrt(fd_energy_gain() * e_mix / fs) * 10.0 ** (-3.0 * (t - t_mix) / rt60) * np.sin(0.5 * np.pi * rho)
+    noise = diffuse_noise(rng, n_points, n, fs, positions=None if foa else mics, foa=foa)
+    out = np.zeros((n_points, len(mics), n_len), dtype=np.float32)
+    out[..., start:] = noise * env
+    return out
+
+
+def _check_points(points: np.ndarray, mics: np.ndarray, dims: np.ndarray) -> None:
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise GeometryError(f"source points must have shape [S, 3]; got {list(points.shape)}")
+    for p in points:
+        if np.any(p <= 0) or np.any(p >= dims):
+            raise GeometryError(f"source at {np.round(p, 3).tolist()} is not inside room {dims.tolist()}")
+        if np.min(np.linalg.norm(mics - p, axis=1)) < 0.01:
+            raise GeometryError(f"source at {np.round(p, 3).tolist()} is within 1 cm of a microphone; move it away")
+    lo, hi = mics.min(axis=0), mics.max(axis=0)
+    if np.any(lo <= 0) or np.any(hi >= dims):
+        raise GeometryError(f"the array's capsules span {np.round(lo, 3).tolist()}–{np.round(hi, 3).tolist()}, outside room {dims.tolist()}")

@@ -1,0 +1,337 @@
+"""RIR banks: multichannel room impulse responses grouped into ordered trajectories.
+
+A *bank* holds, per room, RIRs measured or simulated from many source positions to one
+array, each with its source position in the **array frame** (azimuth °, elevation °,
+distance m; x = front, y = left, z = up, azimuth counter-clockwise from +x, see
+docs/format.md), grouped into *trajectories*: runs of positions ordered along a path
+(a circle around the array, or a line), so a moving source is a walk along one.
+
+Every kind of bank (TAU-SRIR DB as distributed, SOFA ``SingleRoomSRIR`` files, the
+toolkit's own HDF5 format, in-memory banks) has the same interface, :class:`Bank`.
+Reading is lazy: :meth:`Bank.read` touches only the RIRs asked for.
+
+    bank = open_bank("path/to/TAU-SRIR_DB", format="foa")
+    traj = bank.trajectories("tc352")[0]
+    rirs = bank.read("tc352", traj.id, [0, 5, 10])     # float32 [3, 4, L]
+    traj.positions[[0, 5, 10]]                            # (az, el, dist) [3, 3]
+
+See docs/banks.md for the file layouts and rir_banks/README.md for where banks come from.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import TselError
+from ..geometry import CHANNEL_NAMES, FORMATS
+
+KINDS = ("circular", "linear")
+
+
+class BankError(TselError):
+    """An RIR bank is missing, of the wrong kind, or does not hold what was asked for."""
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """One ordered run of bank positions.
+
+    room: room name. id: trajectory id within the room (str or int). kind: ``circular``
+    or ``linear``. positions: float64 [N, 3], (azimuth deg, elevation deg, distance m)
+    in the array frame, ordered along the path. closed: True when the path is a full
+    loop (the last position is followed by the first), so a walk may wrap around.
+    """
+
+    room: str
+    id: str | int
+    kind: str
+    positions: np.ndarray
+    closed: bool = False
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+
+class Bank:
+    """Common interface of every RIR bank.
+
+    Attributes: ``fs`` (Hz), ``format`` (``foa`` | ``mic4`` | ``tetra``),
+    ``channel_names`` (tuple of C names), ``rooms`` (list of room names), ``kind``
+    (``tau`` | ``sofa`` | ``native`` | ``memory``), ``source`` (where it was read from).
+    Subclasses implement :meth:`trajectories` and :meth:`_read`.
+    """
+
+    fs: int
+    format: str
+    channel_names: tuple
+    rooms: list
+    kind: str = "bank"
+    source: str = ""
+
+    # --- to implement ----------------------------------------------------------------
+    def trajectories(self, room: str) -> list[Trajectory]:
+        raise NotImplementedError
+
+    def _read(self, room: str, traj: Trajectory, rows: np.ndarray) -> np.ndarray:
+        """RIRs of sorted, unique positions ``rows`` of ``traj``: float32 [len(rows), C, L]."""
+        raise NotImplementedError
+
+    # --- shared ------------------------------------------------------------------------
+    def room_info(self, room: str) -> dict:
+        """Extra facts about a room (``number`` for TAU rooms, dims, provenance)."""
+        self.check_room(room)
+        return {}
+
+    def resolve_room(self, key) -> str:
+        """Room name for a name or a room number (TAU numbers rooms 1–6, 8–10)."""
+        if isinstance(key, str) and key in self.rooms:
+            return key
+        try:
+            num = int(key)
+        except (TypeError, ValueError):
+            num = None
+        if num is not None:
+            for r in self.rooms:
+                if self.room_info(r).get("number") == num:
+                    return r
+        raise BankError(f"{self.source}: no room {key!r}; rooms are {self._room_list()}")
+
+    def check_room(self, room: str) -> None:
+        if room not in self.rooms:
+            raise BankError(f"{self.source}: no room {room!r}; rooms are {self._room_list()}")
+
+    def trajectory(self, room: str, traj_id) -> Trajectory:
+        for t in self.trajectories(room):
+            if t.id == traj_id or str(t.id) == str(traj_id):
+                return t
+        ids = [t.id for t in self.trajectories(room)]
+        raise BankError(f"{self.source}: room {room!r} has no trajectory {traj_id!r}; it has {ids}")
+
+    def read(self, room: str, traj_id, indices) -> np.ndarray:
+        """RIRs at positions ``indices`` of trajectory ``traj_id``: float32 [len(indices), C, L].
+
+        Only those RIRs are read from disk; indices may repeat and come in any order.
+        """
+        traj = self.trajectory(room, traj_id)
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if idx.size == 0:
+            raise BankError(f"{self.source}: no RIR indices asked for in {room}/{traj_id}")
+        if idx.min() < 0 or idx.max() >= len(traj):
+            raise BankError(
+                f"{self.source}: index {int(idx.max() if idx.max() >= len(traj) else idx.min())} out of range "
+                f"for {room}/{traj_id}, which has {len(traj)} RIRs"
+            )
+        rows, inverse = np.unique(idx, return_inverse=True)
+        out = self._read(room, traj, rows)
+        return np.ascontiguousarray(out[inverse], dtype=np.float32)
+
+    def n_rirs(self, room: str | None = None) -> int:
+        rooms = self.rooms if room is None else [room]
+        return int(sum(len(t) for r in rooms for t in self.trajectories(r)))
+
+    def summary(self) -> dict:
+        """Plain-data description for ``tsel bank info``: rooms, RIR counts, coverage."""
+        rooms = []
+        for r in self.rooms:
+            trajs = self.trajectories(r)
+            pos = np.concatenate([t.positions for t in trajs]) if trajs else np.zeros((0, 3))
+            rooms.append(
+                {
+                    "room": r,
+                    **{k: v for k, v in self.room_info(r).items() if k in ("number",)},
+                    "trajectories": len(trajs),
+                    "kinds": sorted({t.kind for t in trajs}),
+                    "rirs": int(len(pos)),
+                    "azimuth_coverage_deg": azimuth_coverage(pos[:, 0]) if len(pos) else 0.0,
+                    "elevation_range_deg": _range(pos[:, 1]),
+                    "distance_range_m": _range(pos[:, 2]),
+                }
+            )
+        return {
+            "source": str(self.source),
+            "kind": self.kind,
+            "fs": int(self.fs),
+            "format": self.format,
+            "channels": list(self.channel_names),
+            "rooms": rooms,
+            "rirs": int(sum(r["rirs"] for r in rooms)),
+        }
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def _room_list(self) -> str:
+        return ", ".join(map(str, self.rooms)) or "(none)"
+
+
+def azimuth_coverage(az, bin_deg: float = 5.0) -> float:
+    """Degrees of the azimuth circle within ``bin_deg`` bins that hold a position."""
+    az = np.asarray(az, dtype=np.float64)
+    az = az[np.isfinite(az)]
+    if az.size == 0:
+        return 0.0
+    bins = np.unique(np.floor(((az + 180.0) % 360.0) / bin_deg))
+    return float(len(bins) * bin_deg)
+
+
+def _range(v) -> list:
+    v = np.asarray(v, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    return [round(float(v.min()), 3), round(float(v.max()), 3)] if v.size else [None, None]
+
+
+def check_format(fmt: str, where: str = "") -> str:
+    """Canonical array format: TAU's ``mic`` is our ``tetra``."""
+    f = {"mic": "tetra"}.get(str(fmt).lower(), str(fmt).lower())
+    if f not in FORMATS:
+        raise BankError(f"{where}unknown array format {fmt!r}; expected one of {FORMATS} (or 'mic' for tetra)")
+    return f
+
+
+# --- an in-memory bank (simulated banks before they are written; tests) -------------------
+@dataclass
+class _MemRoom:
+    trajectories: list
+    rirs: dict  # traj id -> float32 [N, C, L]
+    info: dict = field(default_factory=dict)
+
+
+class MemoryBank(Bank):
+    """A bank held in memory: ``rooms = {name: [(Trajectory, rirs [N, C, L]), ...]}``."""
+
+    kind = "memory"
+
+    def __init__(self, fs: int, format: str, rooms: dict, info: dict | None = None, source: str = "<memory>"):
+        self.fs = int(fs)
+        self.format = check_format(format)
+        self.channel_names = CHANNEL_NAMES[self.format]
+        self.source = source
+        self._rooms = {}
+        for name, items in rooms.items():
+            trajs = [t for t, _ in items]
+            rirs = {t.id: np.asarray(r, dtype=np.float32) for t, r in items}
+            for t, r in items:
+                if len(r) != len(t):
+                    raise BankError(f"{source}: {name}/{t.id} has {len(t)} positions but {len(r)} RIRs")
+            self._rooms[name] = _MemRoom(trajs, rirs, dict((info or {}).get(name, {})))
+        self.rooms = list(self._rooms)
+
+    def trajectories(self, room):
+        self.check_room(room)
+        return list(self._rooms[room].trajectories)
+
+    def room_info(self, room):
+        self.check_room(room)
+        return dict(self._rooms[room].info)
+
+    def _read(self, room, traj, rows):
+        return self._rooms[room].rirs[traj.id][rows]
+
+
+# --- opening -------------------------------------------------------------------------------
+def open_bank(path_or_dir, kind: str = "auto", format: str | None = None, **options) -> Bank:
+    """Open a bank of any kind.
+
+    kind: ``auto`` (guess from the path), ``tau`` (a TAU-SRIR DB directory as
+    distributed: rirdata.mat, measinfo.mat, rirs_NN_<room>.mat), ``sofa`` (one
+    ``.sofa`` file, a directory of them, or a list of files; one room per file),
+    ``native`` (the toolkit's HDF5 bank, see docs/banks.md). ``format``: the array
+    format to read where a source holds several (TAU: ``foa`` or ``mic``/``tetra``).
+    """
+    if isinstance(path_or_dir, (list, tuple)):
+        paths = [Path(p) for p in path_or_dir]
+        for p in paths:
+            if not p.exists():
+                raise BankError(f"RIR bank file {p} not found")
+        from .sofa import SofaBank
+
+        return SofaBank(paths, format=format, **options)
+    p = Path(os.path.expanduser(str(path_or_dir)))
+    if not p.exists():
+        raise BankError(f"RIR bank {p} not found; give a TAU-SRIR DB directory, a .sofa file or directory, or a bank .h5 file")
+    if kind == "auto":
+        kind = _guess_kind(p)
+    if kind == "tau":
+        from .tau import TauBank
+
+        return TauBank(p, format=format or "foa", **options)
+    if kind == "sofa":
+        from .sofa import SofaBank
+
+        return SofaBank(p, format=format, **options)
+    if kind == "native":
+        from .native import NativeBank
+
+        bank = NativeBank(p, **options)
+        if format is not None and check_format(format) != bank.format:
+            raise BankError(f"{p}: bank holds {bank.format} RIRs, not {check_format(format)}")
+        return bank
+    raise BankError(f"{p}: unknown bank kind {kind!r}; expected auto, tau, sofa or native")
+
+
+def _guess_kind(p: Path) -> str:
+    if p.is_dir():
+        if (p / "rirdata.mat").exists():
+            return "tau"
+        if any(p.glob("*.sofa")):
+            return "sofa"
+        if (p / "TAU-SRIR_DB" / "rirdata.mat").exists():
+            raise BankError(f"{p}: this holds TAU-SRIR_DB/; point at {p / 'TAU-SRIR_DB'} instead")
+        raise BankError(f"{p}: not an RIR bank directory (no rirdata.mat of the TAU-SRIR DB, no .sofa files)")
+    suffix = p.suffix.lower()
+    if suffix == ".sofa":
+        return "sofa"
+    if suffix == ".mat":
+        raise BankError(f"{p}: give the TAU-SRIR DB directory (with rirdata.mat and measinfo.mat), not one .mat file")
+    from .native import is_native_bank
+
+    if is_native_bank(p):
+        return "native"
+    if _is_sofa(p):
+        return "sofa"
+    raise BankError(f"{p}: not an RIR bank (neither a tsel bank .h5 nor a SOFA file)")
+
+
+def _is_sofa(p: Path) -> bool:
+    import h5py
+
+    try:
+        with h5py.File(p, "r") as f:
+            return _attr_str(f.attrs.get("Conventions")) == "SOFA"
+    except OSError:
+        return False
+
+
+def _attr_str(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, bytes):
+        return v.decode("utf-8", "replace")
+    if isinstance(v, np.ndarray):
+        return _attr_str(v.reshape(-1)[0]) if v.size else ""
+    return str(v)
+
+
+from .paths import bank_path_positions, sample_bank_path, sample_bank_point  # noqa: E402
+
+__all__ = [
+    "Bank",
+    "BankError",
+    "MemoryBank",
+    "Trajectory",
+    "azimuth_coverage",
+    "bank_path_positions",
+    "check_format",
+    "open_bank",
+    "sample_bank_path",
+    "sample_bank_point",
+]

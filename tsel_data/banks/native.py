@@ -1,0 +1,164 @@
+"""The toolkit's own RIR bank format (HDF5), see docs/banks.md.
+
+    /                      attrs: tsel_bank (format version, 1), fs, format,
+                           channel_names (JSON), provenance (JSON)
+    /rooms/<room>/rirs     float32 [N, C, L], one chunk per RIR; RIRs of a trajectory
+                           are contiguous, in path order
+    /rooms/<room>/positions float64 [N, 3]: azimuth °, elevation °, distance m (array frame)
+    /rooms/<room>/traj_ids, traj_kinds (str [T]), traj_closed (bool [T]),
+                  traj_offsets (int64 [T + 1]): trajectory t is rows offsets[t]:offsets[t+1]
+    /rooms/<room>          attrs: info (JSON: number, dims, provenance of the room)
+
+Written under a temporary name and renamed, with ``track_times=False`` so the same
+content gives the same bytes.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from ..geometry import CHANNEL_NAMES
+from . import Bank, BankError, Trajectory, check_format
+from ._h5 import H5Pool
+
+VERSION = 1
+
+
+def is_native_bank(path) -> bool:
+    try:
+        with h5py.File(path, "r") as f:
+            return "tsel_bank" in f.attrs
+    except OSError:
+        return False
+
+
+class NativeBank(Bank):
+    kind = "native"
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.source = str(self.path)
+        if not self.path.exists():
+            raise BankError(f"RIR bank {self.path} not found")
+        try:
+            f = h5py.File(self.path, "r")
+        except OSError:
+            raise BankError(f"{self.path}: not an HDF5 file; expected a tsel RIR bank") from None
+        with f:
+            if "tsel_bank" not in f.attrs:
+                raise BankError(f"{self.path}: not a tsel RIR bank (no tsel_bank attribute); convert with `tsel bank import`")
+            if int(f.attrs["tsel_bank"]) > VERSION:
+                raise BankError(f"{self.path}: bank format version {int(f.attrs['tsel_bank'])} is newer than this toolkit reads ({VERSION})")
+            self.fs = int(f.attrs["fs"])
+            self.format = check_format(str(f.attrs["format"]), f"{self.path}: ")
+            self.channel_names = tuple(json.loads(f.attrs["channel_names"]))
+            self.provenance = json.loads(f.attrs.get("provenance", "{}"))
+            self.rooms = list(f["rooms"].keys()) if "rooms" in f else []
+            self._meta = {}
+            for r in self.rooms:
+                g = f["rooms"][r]
+                for name in ("rirs", "positions", "traj_ids", "traj_offsets"):
+                    if name not in g:
+                        raise BankError(f"{self.path}: room {r} lacks {name}; the bank is incomplete")
+                pos = g["positions"][()]
+                off = g["traj_offsets"][()]
+                ids = [s.decode() if isinstance(s, bytes) else str(s) for s in g["traj_ids"][()]]
+                kinds = [s.decode() if isinstance(s, bytes) else str(s) for s in g["traj_kinds"][()]]
+                closed = g["traj_closed"][()] if "traj_closed" in g else np.zeros(len(ids), bool)
+                trajs = [Trajectory(r, ids[t], kinds[t], pos[off[t] : off[t + 1]], bool(closed[t])) for t in range(len(ids))]
+                self._meta[r] = {
+                    "trajectories": trajs,
+                    "offset": {ids[t]: int(off[t]) for t in range(len(ids))},
+                    "info": json.loads(g.attrs.get("info", "{}")),
+                }
+        self._h5 = H5Pool()
+
+    def trajectories(self, room):
+        self.check_room(room)
+        return list(self._meta[room]["trajectories"])
+
+    def room_info(self, room):
+        self.check_room(room)
+        return dict(self._meta[room]["info"])
+
+    def _read(self, room, traj, rows):
+        ds = self._h5.get(self.path)["rooms"][room]["rirs"]
+        rows = rows + self._meta[room]["offset"][str(traj.id)]
+        if rows[-1] - rows[0] == len(rows) - 1:
+            return ds[int(rows[0]) : int(rows[-1]) + 1]
+        return ds[rows.tolist()]
+
+    def close(self):
+        self._h5.close()
+
+
+def write_bank(path, bank: Bank, rooms=None, provenance: dict | None = None, progress=None) -> Path:
+    """Write ``bank`` (any kind) to ``path`` in the native format, one trajectory at a time.
+
+    rooms: names or numbers to keep (default all). provenance: JSON-able facts stored
+    in the file (source, command, seed...). Returns the path.
+    """
+    path = Path(path)
+    names = [bank.resolve_room(r) for r in rooms] if rooms else list(bank.rooms)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    prov = {"source": str(bank.source), "source_kind": bank.kind, **(provenance or {})}
+    try:
+        with h5py.File(tmp, "w", track_order=True) as f:
+            f.attrs["tsel_bank"] = VERSION
+            f.attrs["fs"] = int(bank.fs)
+            f.attrs["format"] = bank.format
+            f.attrs["channel_names"] = json.dumps(list(bank.channel_names))
+            f.attrs["provenance"] = json.dumps(prov, sort_keys=True)
+            top = f.create_group("rooms", track_order=True)
+            for room in names:
+                trajs = bank.trajectories(room)
+                n = sum(len(t) for t in trajs)
+                if n == 0:
+                    continue
+                # The longest RIR sets the room's length (shorter ones are zero-padded).
+                heads = [bank.read(room, t.id, [0]).shape[1:] for t in trajs]
+                C, L = heads[0][0], max(s[1] for s in heads)
+                g = top.create_group(room)
+                g.attrs["info"] = json.dumps(bank.room_info(room), sort_keys=True)
+                rirs = g.create_dataset("rirs", (n, C, L), dtype="f4", chunks=(1, C, L), track_times=False)
+                pos = np.zeros((n, 3))
+                off = [0]
+                for t in trajs:
+                    a = off[-1]
+                    data = bank.read(room, t.id, np.arange(len(t)))
+                    if data.shape[1:] != (C, L):
+                        data = _fit(data, C, L, f"{room}/{t.id}")
+                    rirs[a : a + len(t)] = data
+                    pos[a : a + len(t)] = t.positions
+                    off.append(a + len(t))
+                    if progress:
+                        progress(room, t)
+                g.create_dataset("positions", data=pos, track_times=False)
+                g.create_dataset("traj_offsets", data=np.asarray(off, dtype=np.int64), track_times=False)
+                g.create_dataset("traj_ids", data=np.array([str(t.id) for t in trajs], dtype=h5py.string_dtype()), track_times=False)
+                g.create_dataset("traj_kinds", data=np.array([t.kind for t in trajs], dtype=h5py.string_dtype()), track_times=False)
+                g.create_dataset("traj_closed", data=np.array([t.closed for t in trajs], dtype=bool), track_times=False)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def _fit(data: np.ndarray, C: int, L: int, where: str) -> np.ndarray:
+    """Zero-pad RIRs to the room's length L (trajectories may differ slightly)."""
+    if data.shape[1] != C:
+        raise BankError(f"{where}: {data.shape[1]} channels, expected {C}")
+    out = np.zeros((len(data), C, L), dtype=np.float32)
+    n = min(L, data.shape[2])
+    out[:, :, :n] = data[:, :, :n]
+    return out
+
+
+def channel_names_for(fmt: str) -> tuple:
+    return CHANNEL_NAMES[check_format(fmt)]

@@ -1,0 +1,116 @@
+"""The clip catalog: manifests -> checked clips per split, with the bad-clip policy.
+
+Clips are checked before any scene is planned (``corpus.check``: ``full`` decodes every
+clip once to catch NaN and silence, ``header`` reads headers, ``exists`` only looks for
+the file, ``none`` trusts the manifest). A bad clip is either skipped and listed in
+``OUT/bad_clips.jsonl`` (``on_bad_clip = "skip"``) or stops the run before any
+rendering (``"fail"``). Never silently.
+"""
+from __future__ import annotations
+
+import json
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+
+from .audio import ClipCheck, check_clip
+from .clip import Clip
+from .config import Config
+from .errors import AudioError, ConfigError, TselError
+
+BUILTIN_DEMO = "builtin:demo"
+
+
+@dataclass
+class Catalog:
+    clips: dict[str, list[Clip]]  # split -> good clips, manifest order
+    bad: list[dict] = field(default_factory=list)  # {"split", "clip_id", "origin", "problem"}
+
+    def summary(self) -> str:
+        parts = [f"{s}: {len(c)} clips" for s, c in self.clips.items()]
+        return ", ".join(parts) + (f"; {len(self.bad)} bad clips skipped (bad_clips.jsonl)" if self.bad else "")
+
+
+def resolve_corpus_dir(cfg: Config, out_dir: str) -> str:
+    d = cfg.corpus.dir
+    if d == BUILTIN_DEMO:
+        from .demo import synth_corpus
+
+        d = os.path.join(out_dir, "demo-corpus")
+        if not os.path.isfile(os.path.join(d, "test.csv")):
+            synth_corpus(d, seed=0)
+        return d
+    if not d:
+        raise ConfigError("no corpus given: pass --corpus-dir DIR (the folder with the manifests and audio) "
+                          "or set corpus.dir in the config")
+    d = os.path.expanduser(d)
+    if not os.path.isdir(d):
+        raise ConfigError(f"corpus directory not found: {d}; pass the folder that holds the manifests")
+    return d
+
+
+def read_split_clips(cfg: Config, split: str, corpus_dir: str) -> list[Clip]:
+    from .manifests import read_manifest
+
+    sp = cfg.splits[split]
+    if not sp.manifest:
+        raise ConfigError(f"splits.{split}.manifest is not set; name the manifest file for this split")
+    path = sp.manifest if os.path.isabs(sp.manifest) else os.path.join(corpus_dir, sp.manifest)
+    audio_dir = cfg.corpus.audio_dir or (os.path.join(corpus_dir, "audio") if os.path.isdir(
+        os.path.join(corpus_dir, "audio")) else corpus_dir)
+    if cfg.corpus.audio_dir and not os.path.isabs(audio_dir):
+        audio_dir = os.path.join(corpus_dir, audio_dir)
+    opts = {"split": split}
+    if cfg.corpus.audio_template:
+        opts["template"] = cfg.corpus.audio_template
+    return read_manifest(path, format=cfg.corpus.format, audio_dir=audio_dir, **opts)
+
+
+def build_catalog(cfg: Config, out_dir: str, workers: int = 1) -> Catalog:
+    corpus_dir = resolve_corpus_dir(cfg, out_dir)
+    clips: dict[str, list[Clip]] = {}
+    bad: list[dict] = []
+    for split, sp in cfg.splits.items():
+        if sp.count == 0:
+            continue
+        all_clips = read_split_clips(cfg, split, corpus_dir)
+        checks = check_clips(all_clips, cfg, workers)
+        good = []
+        for clip, chk in zip(all_clips, checks):
+            if chk.problem is None:
+                good.append(clip)
+            else:
+                bad.append({"split": split, "clip_id": clip.id, "origin": clip.origin, "problem": chk.problem})
+        if bad and cfg.on_bad_clip == "fail":
+            b = bad[0]
+            more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+            raise AudioError(f"{b['origin']}: clip {b['clip_id']}: {b['problem']}{more}; fix or remove it, "
+                             f"or set on_bad_clip = \"skip\"")
+        if len(good) < 2:
+            raise TselError(f"split {split}: only {len(good)} usable clips in {sp.manifest}; a scene needs two")
+        clips[split] = good
+    return Catalog(clips, bad)
+
+
+def check_clips(clips: list[Clip], cfg: Config, workers: int = 1) -> list[ClipCheck]:
+    level = cfg.corpus.check
+    if level == "none":
+        return [ClipCheck(c.id, None) for c in clips]
+    args = [(c.id, c.audio, level, cfg.corpus.min_duration, cfg.corpus.max_channels, c.offset) for c in clips]
+    if workers > 1 and level == "full" and len(clips) > 64:
+        with ProcessPoolExecutor(workers) as ex:
+            return list(ex.map(_check, args, chunksize=64))
+    return [_check(a) for a in args]
+
+
+def _check(a) -> ClipCheck:
+    return check_clip(*a)
+
+
+def write_bad_clips(path: str, bad: list[dict]) -> None:
+    tmp = path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as f:
+        for b in bad:
+            f.write(json.dumps(b, ensure_ascii=False) + "\n")
+    os.replace(tmp, path)
+

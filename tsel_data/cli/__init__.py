@@ -1,0 +1,43 @@
+"""The ``tsel`` command: a thin click layer over the library.
+
+User mistakes (TselError) print one line and exit with 2, never a traceback.
+"""
+from __future__ import annotations
+
+import sys
+
+import click
+
+from ..errors import TselError
+from .corpus import corpus
+from .dataset import finalize_cmd, generate_cmd, plan_cmd, render_cmd
+from .presets import presets_cmd
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(package_name="tsel-data")
+def cli():
+    """Build datasets for text-queried target sound event localization."""
+
+
+for _cmd in (generate_cmd, plan_cmd, render_cmd, finalize_cmd, corpus, presets_cmd):
+    cli.add_command(_cmd)
+
+
+def main(argv=None) -> None:
+    try:
+        rc = cli.main(args=argv, prog_name="tsel", standalone_mode=False)
+    except TselError as e:
+        click.echo(f"error: {e}", err=True)
+        sys.exit(2)
+    except click.ClickException as e:
+        e.show()
+        sys.exit(e.exit_code)
+    except click.Abort:
+        click.echo("aborted", err=True)
+        sys.exit(130)
+    except OSError as e:
+        # full disk, unwritable output: say which file, no traceback
+        click.echo(f"error: {e.strerror or e}: {e.filename or ''}".rstrip(": "), err=True)
+        sys.exit(2)
+    sys.exit(rc if isinstance(rc, int) else 0)

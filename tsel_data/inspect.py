@@ -1,0 +1,234 @@
+"""Look at and listen to one scene: text summary, picture, mixture WAV.
+
+The picture has three panels: the room seen from above (walls, the array with an arrow
+along its front, +x, every directional source with its trajectory, the target as a
+star), each source's azimuth over time (thick where the source is active), and the
+spectrogram of channel 0; the title is the query.
+"""
+from __future__ import annotations
+
+import os
+import textwrap
+
+import numpy as np
+
+from .errors import DatasetError, TselError
+from .geometry import array_to_room, sph_to_cart
+from .reader import Scene, list_splits, open_dataset
+
+SOURCE_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
+
+
+def find_scene(root: str, ref: str, split: str | None = None) -> Scene:
+    """A scene by id (``test-000012``) or by ``split/index`` (``test/12``, negative allowed)."""
+    splits = list_splits(root)
+    if "/" in ref:
+        sp, _, idx = ref.partition("/")
+        try:
+            i = int(idx)
+        except ValueError:
+            raise TselError(f"scene {ref!r}: expected SPLIT/INDEX with an integer index, e.g. test/0") from None
+        ds = open_dataset(root, sp)
+        try:
+            return ds[i]
+        except IndexError:
+            raise DatasetError(f"scene {ref!r}: split {sp!r} has {len(ds)} scenes (index 0..{len(ds) - 1})") from None
+    # Scene ids start with their split by convention; look there first, then everywhere.
+    order = [split] if split else sorted(splits, key=lambda s: not ref.startswith(s + "-"))
+    for sp in order:
+        ds = open_dataset(root, sp)
+        if ref in ds:
+            return ds.by_id(ref)
+    where = f"split {split!r}" if split else f"splits {', '.join(splits)}"
+    raise DatasetError(f"no scene {ref!r} in {where} of {root}; give a scene id or SPLIT/INDEX such as "
+                       f"{splits[0]}/0")
+
+
+def _fmt_vec(v) -> str:
+    return "(" + ", ".join(f"{x:.2f}" for x in v) + ")"
+
+
+def summary(scene: Scene) -> str:
+    """A multi-line human-readable description of a scene."""
+    rec = scene.record
+    lines = [f"scene {scene.scene_id}  (split {scene.split}, index {scene.index}, seed {rec.get('seed', '?')})",
+             f"query: {scene.query!r}"]
+    lines.append(f"scenario: {rec.get('scenario', '?')}   motion: {rec.get('motion', '?')}   "
+                 f"rir: {rec.get('rir_method', '?')}")
+    room = rec.get("room")
+    if room and room.get("dims"):
+        meas = room.get("rt60_measured")
+        lines.append(f"room: {' x '.join(f'{d:.2f}' for d in room['dims'])} m, RT60 {room.get('rt60', float('nan')):.2f} s "
+                     f"requested, " + (f"{meas:.2f} s measured" if meas is not None else "not measured"))
+    elif room:
+        lines.append("room: " + ", ".join(f"{k} {v}" for k, v in room.items()))
+    arr = rec.get("array") or {}
+    if arr:
+        side = f" (side {arr['side']:.3f} m)" if arr.get("side") else ""
+        lines.append(f"array: {arr.get('format', scene.format)}{side} at {_fmt_vec(arr.get('centre', (0, 0, 0)))} m, "
+                     f"front (yaw) {arr.get('yaw', 0.0):.1f} deg")
+    dur = scene.audio.shape[1] / scene.fs if scene.audio is not None else scene.n_frames * scene.label_hop
+    if scene.audio is not None:
+        peak = float(np.max(np.abs(scene.audio)))
+        rms = float(np.sqrt(np.mean(scene.audio.astype(np.float64) ** 2)))
+        lines.append(f"audio: {scene.audio.shape[0]} ch x {dur:.2f} s at {scene.fs} Hz, "
+                     f"peak {20 * np.log10(peak + 1e-12):.1f} dBFS, rms {20 * np.log10(rms + 1e-12):.1f} dBFS")
+    lines.append(f"labels: {scene.n_frames} frames of {scene.label_hop:g} s, {scene.n_sources} sources")
+    srcs = rec.get("sources") or [{} for _ in range(scene.n_sources)]
+    for s in range(scene.n_sources):
+        info = srcs[s] if s < len(srcs) else {}
+        role = info.get("role", "target" if s == 0 else "interferer")
+        act = scene.active[s]
+        az = scene.azimuth[s]
+        if np.isfinite(az).any():
+            ok = np.isfinite(az)
+            a0, a1 = az[ok][0], az[ok][-1]
+            pos = (f"az {a0:7.1f}" + (f" -> {a1:.1f}" if abs(a1 - a0) > 0.05 else "") +
+                   f" deg  el {np.nanmean(scene.elevation[s]):5.1f} deg  dist {np.nanmean(scene.distance[s]):.2f} m")
+        else:
+            pos = "no position (additive)"
+        extra = []
+        if info.get("tir_db") is not None:
+            extra.append(f"TIR {info['tir_db']:.1f} dB")
+        if info.get("level_dbfs") is not None:
+            extra.append(f"level {info['level_dbfs']:.1f} dBFS")
+        lines.append(f"  [{s}] {role:<10} {info.get('clip_id', '?')}  {info.get('spatial', '')}"
+                     f"{' moving' if info.get('moving') else ''}  {pos}  active {100 * act.mean():.0f}% of frames"
+                     + (f"  {', '.join(extra)}" if extra else ""))
+        for cap in (info.get("captions") or [])[:3]:
+            lines.append(f"        caption: {cap}")
+    return "\n".join(lines)
+
+
+def write_wav(scene: Scene, path: str, subtype: str = "FLOAT") -> str:
+    """Write the mixture [C, T] as a WAV file (float32 by default, nothing clipped)."""
+    import soundfile as sf
+
+    if scene.audio is None:
+        raise TselError(f"{scene.scene_id}: read with audio=False; no audio to write")
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    sf.write(path, scene.audio.T, scene.fs, subtype=subtype)
+    return path
+
+
+def source_tracks(scene: Scene) -> tuple[list[np.ndarray | None], np.ndarray, float]:
+    """Room-frame xyz per frame [F, 3] of every source (None if positionless).
+
+    Also returns the array centre and yaw used. Scenes without a room (RIR banks) are
+    drawn in the array frame (centre 0, yaw 0).
+    """
+    arr = scene.record.get("array") or {}
+    room = scene.record.get("room") or {}
+    if room.get("dims") and arr.get("centre") is not None:
+        centre, yaw = np.asarray(arr["centre"], dtype=np.float64), float(arr.get("yaw", 0.0))
+    else:
+        centre, yaw = np.zeros(3), 0.0
+    tracks = []
+    for s in range(scene.n_sources):
+        az, el, d = scene.azimuth[s], scene.elevation[s], scene.distance[s]
+        if not np.isfinite(az).any():
+            tracks.append(None)
+            continue
+        p = sph_to_cart(az, np.nan_to_num(el), np.nan_to_num(d, nan=1.0))
+        tracks.append(array_to_room(p, centre, yaw))
+    return tracks, centre, yaw
+
+
+def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
+    """Draw the scene (room, azimuth tracks, spectrogram) to a PNG file."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    from .features import stft
+
+    if scene.audio is None:
+        raise TselError(f"{scene.scene_id}: read with audio=False; cannot draw a spectrogram")
+    fig = plt.figure(figsize=(13, 6.2))
+    gs = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.35), hspace=0.35, wspace=0.22)
+    ax_room, ax_az, ax_spec = fig.add_subplot(gs[:, 0]), fig.add_subplot(gs[0, 1]), fig.add_subplot(gs[1, 1])
+    rec = scene.record
+    srcs = rec.get("sources") or [{} for _ in range(scene.n_sources)]
+    tracks, centre, yaw = source_tracks(scene)
+    dims = (rec.get("room") or {}).get("dims")
+
+    # --- room from above ----------------------------------------------------------
+    if dims:
+        ax_room.add_patch(Rectangle((0, 0), dims[0], dims[1], fill=False, lw=2, color="0.2"))
+        ax_room.set_xlim(-0.3, dims[0] + 0.3)
+        ax_room.set_ylim(-0.3, dims[1] + 0.3)
+        ax_room.set_xlabel("room x (m)")
+        ax_room.set_ylabel("room y (m)")
+    else:
+        ax_room.set_xlabel("x (m, array front)")
+        ax_room.set_ylabel("y (m, array left)")
+    mics = array_to_room(scene.mic_positions.astype(np.float64), centre, yaw)
+    ax_room.plot(mics[:, 0], mics[:, 1], "k.", ms=4)
+    span = max(dims[:2]) if dims else 4.0
+    L = 0.09 * span
+    ax_room.annotate("", xy=(centre[0] + L * np.cos(np.radians(yaw)), centre[1] + L * np.sin(np.radians(yaw))),
+                     xytext=(centre[0], centre[1]), arrowprops=dict(arrowstyle="-|>", color="k", lw=1.8))
+    ax_room.plot([centre[0]], [centre[1]], "ks", ms=5, label=f"array ({scene.format}), arrow = front")
+    t = scene.frame_times()
+    for s, tr in enumerate(tracks):
+        col = SOURCE_COLOURS[s % len(SOURCE_COLOURS)]
+        role = (srcs[s] if s < len(srcs) else {}).get("role", "target" if s == 0 else "interferer")
+        name = f"{s}: {role}"
+        if tr is None:
+            ax_room.plot([], [], " ", label=f"{name} (additive, no position)")
+            continue
+        ax_room.plot(tr[:, 0], tr[:, 1], "-", color=col, lw=1.2, alpha=0.8)
+        marker, size = ("*", 16) if s == 0 else ("o", 8)
+        ax_room.plot(tr[-1, 0], tr[-1, 1], marker, color=col, ms=size, label=name)
+        if np.ptp(tr[:, :2], axis=0).max() > 1e-3:
+            ax_room.plot(tr[0, 0], tr[0, 1], "x", color=col, ms=7)  # start of a moving source
+    ax_room.set_aspect("equal")
+    ax_room.legend(loc="upper left", fontsize=8, framealpha=0.85)
+    ax_room.set_title("room from above" + ("" if dims else " (array frame)"), fontsize=10)
+
+    # --- azimuth over time ---------------------------------------------------------
+    for s in range(scene.n_sources):
+        az = scene.azimuth[s].astype(np.float64)
+        if not np.isfinite(az).any():
+            continue
+        col = SOURCE_COLOURS[s % len(SOURCE_COLOURS)]
+        ax_az.plot(t, az, ":", color=col, lw=1)
+        ax_az.plot(t, np.where(scene.active[s], az, np.nan), "-", color=col, lw=3,
+                   label=f"{s}: {'target' if s == 0 else 'interferer'}")
+    ax_az.set_ylim(-180, 180)
+    ax_az.set_yticks(range(-180, 181, 90))
+    ax_az.set_xlim(0, scene.n_frames * scene.label_hop)
+    ax_az.set_ylabel("azimuth (deg)")
+    ax_az.set_title("azimuth per frame (thick = active)", fontsize=10)
+    ax_az.grid(alpha=0.3)
+    ax_az.legend(fontsize=8, loc="upper right")
+
+    # --- spectrogram of channel 0 --------------------------------------------------
+    spec = np.abs(stft(scene.audio[:1], 1024, 256))[0].T
+    db = 20 * np.log10(spec + 1e-9)
+    vmax = db.max()
+    dur = scene.audio.shape[1] / scene.fs
+    ax_spec.imshow(db, origin="lower", aspect="auto", cmap="magma", vmin=vmax - 80, vmax=vmax,
+                   extent=(0, dur, 0, scene.fs / 2000))
+    ax_spec.set_xlabel("time (s)")
+    ax_spec.set_ylabel("kHz")
+    ax_spec.set_title("spectrogram of channel 0", fontsize=10)
+
+    fig.suptitle(textwrap.fill(f"{scene.scene_id}: \u201c{scene.query}\u201d", 110), fontsize=11)
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    fig.savefig(path, dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def inspect_scene(root: str, ref: str, split: str | None = None, png: str | None = None,
+                  wav: str | None = None) -> tuple[Scene, str]:
+    """Find a scene, optionally write its picture and WAV; returns (scene, summary text)."""
+    scene = find_scene(root, ref, split)
+    if png:
+        plot_scene(scene, png)
+    if wav:
+        write_wav(scene, wav)
+    return scene, summary(scene)

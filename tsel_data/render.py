@@ -1,0 +1,125 @@
+"""Render a scene recipe: dry clips -> RIRs -> spatial images -> mix at the recipe's levels
+-> per-frame labels.
+
+Levels: every gain is set from *active-frame* RMS (audio.active_rms), never from a
+clip's length: the target's image at the array is put at ``target_level_dbfs`` and
+each interferer's image ``tir_db`` below it. If the mix would clip, everything is scaled
+down together and the scaling is recorded (``levels.normalisation_db``).
+
+Labels: frame k covers [k·hop, (k+1)·hop); its position is the source's position at
+the frame centre, in the array frame.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import fft as sfft
+
+from .acoustics import simulate_rirs
+from .audio import active_rms, db, frame_activity, load_clip_cached
+from .geometry import CHANNEL_NAMES, cart_to_sph
+from .recipe import SceneRecipe, array_frame_position_at
+from .store.writer import RenderedScene
+
+PEAK_LIMIT = 0.99
+
+
+def convolve(signals: np.ndarray, rirs: np.ndarray, n_out: int) -> np.ndarray:
+    """Batched FFT convolution, kept to the first ``n_out`` samples.
+
+    signals: float32 [S, T]; rirs: float32 [S, C, L] -> float32 [S, C, n_out], where
+    out[s, c] = (signals[s] * rirs[s, c])[:n_out]. One real FFT per signal and per RIR
+    (scipy.fft, next_fast_len), multiplied in the frequency domain.
+    """
+    s, t = signals.shape
+    n = sfft.next_fast_len(t + rirs.shape[-1] - 1, real=True)
+    x = sfft.rfft(signals.astype(np.float32, copy=False), n, axis=-1)
+    h = sfft.rfft(rirs.astype(np.float32, copy=False), n, axis=-1)
+    y = sfft.irfft(h * x[:, None, :], n, axis=-1)
+    return np.ascontiguousarray(y[..., :n_out], dtype=np.float32)
+
+
+def frame_times(recipe: SceneRecipe) -> np.ndarray:
+    """Label frame centres (s): (k + 0.5)·hop for k < round(duration / hop)."""
+    return (np.arange(recipe.n_frames) + 0.5) * recipe.label_hop
+
+
+def source_labels(recipe: SceneRecipe, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(azimuth, elevation, distance) [F] of source k in the array frame; NaN if positionless."""
+    s = recipe.sources[k]
+    f = recipe.n_frames
+    if s.spatial != "directional":
+        nan = np.full(f, np.nan, dtype=np.float32)
+        return nan, nan.copy(), nan.copy()
+    az, el, dist = cart_to_sph(array_frame_position_at(recipe, s, frame_times(recipe)))
+    return az.astype(np.float32), el.astype(np.float32), dist.astype(np.float32)
+
+
+def render_scene(recipe: SceneRecipe) -> RenderedScene:
+    fs, n, hop, nf = recipe.fs, recipe.n_samples, recipe.label_hop, recipe.n_frames
+    fmt = recipe.array.format
+    dry = np.stack([load_clip_cached(s.audio, fs, recipe.duration, s.offset) for s in recipe.sources])
+    active = np.stack([frame_activity(x, fs, hop, nf, recipe.activity_threshold_db) for x in dry])
+    n_ch = len(CHANNEL_NAMES[fmt])
+
+    images = np.zeros((len(recipe.sources), n_ch, n), dtype=np.float32)
+    directional = [k for k, s in enumerate(recipe.sources) if s.spatial == "directional"]
+    rt60_measured = None
+    if directional:
+        pts = np.array([recipe.sources[k].position for k in directional], dtype=np.float64)
+        rs = simulate_rirs(recipe.room, recipe.array, pts, fs, method=recipe.rir_method, seed=recipe.seed)
+        rt60_measured = rs.rt60_measured
+        images[directional] = convolve(dry[directional], rs.rirs, n)
+    for k, s in enumerate(recipe.sources):
+        if s.spatial == "additive":
+            # no direction: the same signal on every omni capsule; for FOA only the
+            # omnidirectional W channel, since equal gains on Y, Z, X would be a direction.
+            if fmt == "foa":
+                images[k, 0] = dry[k]
+            else:
+                images[k] = dry[k]
+
+    level_ch = slice(0, 1) if fmt == "foa" else slice(None)
+    levels = np.array([active_rms(images[k, level_ch], active[k], fs, hop) for k in range(len(images))])
+    target_rms = 10 ** (recipe.target_level_dbfs / 20)
+    gains = np.zeros(len(images))
+    for k, s in enumerate(recipe.sources):
+        want = target_rms if k == 0 else target_rms * 10 ** (-s.tir_db / 20)
+        gains[k] = want / levels[k] if levels[k] > 0 else 0.0
+    mix = np.tensordot(gains.astype(np.float32), images, axes=1)
+    peak = float(np.max(np.abs(mix))) if mix.size else 0.0
+    norm = PEAK_LIMIT / peak if peak > PEAK_LIMIT else 1.0
+    mix *= np.float32(norm)
+
+    labels = [source_labels(recipe, k) for k in range(len(recipe.sources))]
+    az = np.stack([l[0] for l in labels])
+    el = np.stack([l[1] for l in labels])
+    dist = np.stack([l[2] for l in labels])
+    mics = recipe.array.mics().astype(np.float32)
+
+    record = {
+        "scene_id": recipe.scene_id, "split": recipe.split, "index": recipe.index, "seed": recipe.seed,
+        "scenario": recipe.scenario, "query": recipe.query,
+        "motion": "moving" if any(s.moving for s in recipe.sources) else "static",
+        "rir_method": recipe.rir_method,
+        "room": None if recipe.room is None else {
+            "dims": list(recipe.room.dims), "rt60": recipe.room.rt60, "rt60_measured": rt60_measured},
+        "array": {"format": fmt, "centre": list(recipe.array.centre), "yaw": recipe.array.yaw,
+                  "side": recipe.array.side, "mic_positions": np.round(mics.astype(np.float64), 6).tolist()},
+        "sources": [
+            {"role": s.role, "clip_id": s.clip_id, "audio": s.audio, "captions": list(s.captions),
+             "spatial": s.spatial, "moving": s.moving,
+             "position": None if s.position is None else list(s.position),
+             "azimuth": _round(az[k]), "elevation": _round(el[k]), "distance": _round(dist[k], 4),
+             "active": active[k].tolist(), "tir_db": s.tir_db,
+             "gain_db": round(db(gains[k] * norm), 3) if gains[k] > 0 else None,
+             "level_dbfs": round(db(levels[k] * gains[k] * norm), 3) if gains[k] > 0 else None}
+            for k, s in enumerate(recipe.sources)
+        ],
+        "levels": {"target_level_dbfs": recipe.target_level_dbfs, "peak": round(peak * norm, 6),
+                   "normalisation_db": round(db(norm), 3)},
+    }
+    return RenderedScene(recipe.scene_id, recipe.query, mix, az, el, dist, active, mics, record)
+
+
+def _round(a: np.ndarray, nd: int = 3) -> list:
+    return [None if not np.isfinite(v) else round(float(v), nd) for v in a]

@@ -1,0 +1,150 @@
+"""Write one shard: ``{split}/shard-NNNNN.h5`` and its ``.json`` twin.
+
+Both files are written under temporary names and renamed only when complete, JSON
+first and HDF5 last, so a shard whose ``.h5`` exists under its final name is whole.
+HDF5 bytes are deterministic (``track_times=False``, fixed chunking, no timestamps), so
+a resumed or re-run job writes identical files.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from dataclasses import dataclass, field
+
+import h5py
+import numpy as np
+
+FORMAT_VERSION = 1
+LABEL_KEYS = ("azimuth", "elevation", "distance")
+
+
+@dataclass
+class RenderedScene:
+    """One rendered scene, ready to store.
+
+    audio: float32 [C, T]. azimuth/elevation/distance: float32 [S, F] (NaN where a
+    source has no position). active: bool [S, F]. mic_positions: float32 [C, 3] array
+    frame. record: the JSON description of the scene (docs/format.md).
+    """
+
+    scene_id: str
+    query: str
+    audio: np.ndarray
+    azimuth: np.ndarray
+    elevation: np.ndarray
+    distance: np.ndarray
+    active: np.ndarray
+    mic_positions: np.ndarray
+    record: dict = field(default_factory=dict)
+
+
+def shard_names(split: str, shard: int) -> tuple[str, str]:
+    """Relative paths of a shard's HDF5 and JSON files."""
+    stem = f"{split}/shard-{shard:05d}"
+    return f"{stem}.h5", f"{stem}.json"
+
+
+def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene], attrs: dict) -> dict:
+    """Write one shard atomically; returns its entry for ``dataset.json``."""
+    h5_rel, json_rel = shard_names(split, shard)
+    h5_path, json_path = os.path.join(out_dir, h5_rel), os.path.join(out_dir, json_rel)
+    os.makedirs(os.path.dirname(h5_path), exist_ok=True)
+    n_src = max(s.azimuth.shape[0] for s in scenes)
+
+    doc = {"format_version": FORMAT_VERSION, "split": split, "shard": shard, **attrs,
+           "scenes": [s.record for s in scenes]}
+    _atomic_write(json_path, (json.dumps(_json_safe(doc), ensure_ascii=False, indent=1) + "\n").encode("utf-8"))
+    _atomic_write_h5(h5_path, scenes, n_src, {"split": split, "shard": shard, **attrs})
+    return {
+        "file": h5_rel,
+        "json": json_rel,
+        "scenes": len(scenes),
+        "sha256": sha256_file(h5_path),
+        "json_sha256": sha256_file(json_path),
+    }
+
+
+def _atomic_write(path: str, data: bytes) -> None:
+    tmp = f"{path}.tmp-{os.getpid()}"
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def _atomic_write_h5(path: str, scenes: list[RenderedScene], n_src: int, attrs: dict) -> None:
+    n = len(scenes)
+    c, t = scenes[0].audio.shape
+    f_ = scenes[0].azimuth.shape[1]
+    tmp = f"{path}.tmp-{os.getpid()}"
+    try:
+        with h5py.File(tmp, "w", track_order=False, libver=("earliest", "v110")) as h:
+            audio = h.create_dataset("audio", (n, c, t), dtype="float32", chunks=(1, c, t), track_times=False)
+            for i, s in enumerate(scenes):
+                audio[i] = s.audio
+            g = h.create_group("labels")
+            for key in LABEL_KEYS:
+                g.create_dataset(key, data=_stack_padded([getattr(s, key) for s in scenes], n_src, np.nan, np.float32),
+                                 track_times=False)
+            g.create_dataset("active", data=_stack_padded([s.active for s in scenes], n_src, False, bool),
+                             track_times=False)
+            str_t = h5py.string_dtype("utf-8")
+            h.create_dataset("query", data=np.array([s.query for s in scenes], dtype=object), dtype=str_t,
+                             track_times=False)
+            h.create_dataset("scene_id", data=np.array([s.scene_id for s in scenes], dtype=object), dtype=str_t,
+                             track_times=False)
+            h.create_dataset("mic_positions", data=np.stack([s.mic_positions for s in scenes]).astype(np.float32),
+                             track_times=False)
+            for k, v in sorted(attrs.items()):
+                h.attrs[k] = _attr(v)
+            h.attrs["frames"] = f_
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def _stack_padded(arrays, n_src, fill, dtype) -> np.ndarray:
+    n_frames = arrays[0].shape[1]
+    out = np.full((len(arrays), n_src, n_frames), fill, dtype=dtype)
+    for i, a in enumerate(arrays):
+        out[i, : a.shape[0]] = a
+    return out
+
+
+def _attr(v):
+    if isinstance(v, (list, tuple)):
+        if all(isinstance(x, str) for x in v):
+            return np.array(v, dtype=h5py.string_dtype("utf-8"))
+        return np.asarray(v)
+    return v
+
+
+def _json_safe(x):
+    """NaN/inf -> null, numpy -> Python (JSON has no NaN)."""
+    if isinstance(x, dict):
+        return {k: _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_safe(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _json_safe(x.tolist())
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def sha256_file(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
