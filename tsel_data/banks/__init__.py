@@ -99,6 +99,11 @@ class Bank:
                     return r
         raise BankError(f"{self.source}: no room {key!r}; rooms are {self._room_list()}")
 
+    def require_fs(self, fs: int) -> None:
+        """Raise BankError unless the bank's sample rate is ``fs`` (banks are never resampled silently)."""
+        if int(fs) != int(self.fs):
+            raise BankError(f"{self.source}: RIRs are at {self.fs} Hz but the scenes are at {int(fs)} Hz; set fs = {self.fs} or use a bank at {int(fs)} Hz")
+
     def check_room(self, room: str) -> None:
         if room not in self.rooms:
             raise BankError(f"{self.source}: no room {room!r}; rooms are {self._room_list()}")
@@ -173,14 +178,14 @@ class Bank:
         return ", ".join(map(str, self.rooms)) or "(none)"
 
 
-def azimuth_coverage(az, bin_deg: float = 5.0) -> float:
-    """Degrees of the azimuth circle within ``bin_deg`` bins that hold a position."""
+def azimuth_coverage(az, max_gap_deg: float = 20.0) -> float:
+    """Degrees of the azimuth circle not inside a gap wider than ``max_gap_deg`` between positions."""
     az = np.asarray(az, dtype=np.float64)
-    az = az[np.isfinite(az)]
+    az = np.unique(np.round(az[np.isfinite(az)] % 360.0, 6))
     if az.size == 0:
         return 0.0
-    bins = np.unique(np.floor(((az + 180.0) % 360.0) / bin_deg))
-    return float(len(bins) * bin_deg)
+    gaps = np.diff(np.r_[az, az[0] + 360.0])
+    return float(round(360.0 - gaps[gaps > max_gap_deg].sum(), 3))
 
 
 def _range(v) -> list:

@@ -1,0 +1,257 @@
+"""Benchmark: simulated-room scenes, the project's simulator against pyroomacoustics' default path.
+
+Run by hand (``make bench`` or ``.venv/bin/python benchmarks/bench_simulated.py``); it
+prints numbers and writes nothing outside a temporary directory.
+
+Scenes: static, 2 directional sources, 10 s at 24 kHz. Rooms sampled with a seeded
+Generator:
+  paper      every side U[5, 15] m, RT60 U[0.5, 1.0] s
+  realistic  floor U[5, 15] m, height U[2.5, 4] m, RT60 U[0.5, 1.0] s
+Array: mic4 side U[0.10, 0.13] m (or FOA) at height U[1.0, 1.2] m, 1 m from the walls,
+random yaw; sources 1-3 m from the array, 0.5 m from every wall.
+
+Measured, each configuration in its own worker process (one thread each):
+  * scenes/s per core end to end: recipe -> dry clips from disk -> RIRs -> FFT
+    convolution -> levels, labels -> HDF5 + JSON shard on disk (tsel_data.render,
+    tsel_data.store.writer);
+  * the same for pyroomacoustics' default path (pra.inverse_sabine absorption and max
+    order, ShoeBox, room.simulate(return_premix=True)) on the same recipes, written the
+    same way; and the ratio;
+  * peak RSS of each worker;
+  * T30 / requested RT60 of the first RIR (omni / W, Schroeder -5..-35 dB) over more
+    rooms: min, median, max, share within ±10 %;
+  * 2 worker processes against 1 on the same scenes.
+"""
+from __future__ import annotations
+
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS", "PRA_NUM_THREADS"):
+    os.environ[_v] = "1"
+
+import argparse  # noqa: E402
+import multiprocessing as mp  # noqa: E402
+import resource  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+import soundfile as sf  # noqa: E402
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+from tsel_data.acoustics import simulate_rirs  # noqa: E402
+from tsel_data.acoustics.metrics import t30  # noqa: E402
+from tsel_data.geometry import CHANNEL_NAMES, array_to_room  # noqa: E402
+from tsel_data.recipe import ArrayPose, Room, SceneRecipe, Source  # noqa: E402
+
+FS = 24000
+DURATION = 10.0
+N_CLIPS = 96  # more than the loader's cache, so clips really come from disk
+SHARD = 10  # scenes per shard
+
+
+# --- scenes --------------------------------------------------------------------------------
+def sample_room(rng: np.random.Generator, family: str) -> Room:
+    if family == "paper":
+        dims = rng.uniform(5.0, 15.0, 3)
+    else:
+        dims = np.r_[rng.uniform(5.0, 15.0, 2), rng.uniform(2.5, 4.0)]
+    return Room(tuple(float(d) for d in np.round(dims, 3)), float(round(rng.uniform(0.5, 1.0), 3)))
+
+
+def sample_scene(rng, index: int, family: str, fmt: str, method: str, clip_dir: str) -> SceneRecipe:
+    room = sample_room(rng, family)
+    dims = np.asarray(room.dims)
+    centre = np.r_[rng.uniform(1.0, dims[:2] - 1.0), rng.uniform(1.0, 1.2)]
+    array = ArrayPose(fmt, tuple(np.round(centre, 3)), float(round(rng.uniform(-180, 180), 2)),
+                      float(round(rng.uniform(0.10, 0.13), 4)) if fmt == "mic4" else None)
+    positions = []
+    while len(positions) < 2:
+        d, az, el = rng.uniform(1.0, 3.0), rng.uniform(-np.pi, np.pi), rng.uniform(-0.6, 0.6)
+        p = centre + d * np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)])
+        if np.all(p >= 0.5) and np.all(p <= dims - 0.5):
+            positions.append(tuple(float(v) for v in np.round(p, 3)))
+    clips = rng.choice(N_CLIPS, 2, replace=False)
+    sources = tuple(
+        Source(role="target" if k == 0 else "interferer", clip_id=f"c{c}", audio=os.path.join(clip_dir, f"c{c}.wav"),
+               captions=("noise",), position=positions[k], tir_db=None if k == 0 else float(rng.uniform(-5, 5)))
+        for k, c in enumerate(clips)
+    )
+    return SceneRecipe(scene_id=f"{family}-{fmt}-{index:05d}", split="bench", index=index, seed=int(rng.integers(2**31)),
+                       scenario="two-directional", query="noise", array=array, sources=sources, room=room, fs=FS,
+                       duration=DURATION, rir_method=method)
+
+
+def scenes(n: int, family: str, fmt: str, method: str, clip_dir: str, seed: int = 0) -> list[SceneRecipe]:
+    # same seed for every method: the baseline sees exactly the same recipes
+    rng = np.random.default_rng([seed, {"paper": 0, "realistic": 1}[family], {"mic4": 0, "foa": 1}[fmt]])
+    return [sample_scene(rng, i, family, fmt, method, clip_dir) for i in range(n)]
+
+
+def make_clips(clip_dir: str) -> None:
+    rng = np.random.default_rng(1)
+    n = int(DURATION * FS)
+    t = np.arange(n) / FS
+    for c in range(N_CLIPS):
+        # noise bursts with a slow on/off envelope, so the activity labels have something to do
+        env = (np.sin(2 * np.pi * rng.uniform(0.1, 0.5) * t + rng.uniform(0, 6)) > -0.3).astype(np.float32)
+        sf.write(os.path.join(clip_dir, f"c{c}.wav"), 0.1 * rng.standard_normal(n).astype(np.float32) * env, FS,
+                 subtype="FLOAT")
+
+
+# --- rendering -----------------------------------------------------------------------------
+def render_ours(recipe: SceneRecipe):
+    from tsel_data.render import render_scene
+
+    return render_scene(recipe)
+
+
+def render_pra_default(recipe: SceneRecipe):
+    """pyroomacoustics as a user writes it: inverse_sabine, ShoeBox, room.simulate()."""
+    import pyroomacoustics as pra
+
+    from tsel_data.audio import active_rms, frame_activity, load_clip_cached
+    from tsel_data.render import source_labels
+    from tsel_data.store.writer import RenderedScene
+
+    np.random.seed(recipe.seed % 2**32)  # pra's generator is numpy's global one
+    dims = list(recipe.room.dims)
+    e_abs, order = pra.inverse_sabine(recipe.room.rt60, dims)
+    room = pra.ShoeBox(dims, fs=FS, materials=pra.Material(e_abs), max_order=order)
+    room.add_microphone_array(array_to_room(recipe.array.mics(), recipe.array.centre, recipe.array.yaw).T)
+    dry = []
+    for s in recipe.sources:
+        x = load_clip_cached(s.audio, FS, DURATION, s.offset)
+        dry.append(x)
+        room.add_source(list(s.position), signal=x)
+    n = recipe.n_samples
+    images = room.simulate(return_premix=True)[..., :n].astype(np.float32)  # [S, C, T]
+    active = np.stack([frame_activity(x, FS, recipe.label_hop, recipe.n_frames, recipe.activity_threshold_db) for x in dry])
+    levels = np.array([active_rms(images[k], active[k], FS, recipe.label_hop) for k in range(len(images))])
+    want = 10 ** (recipe.target_level_dbfs / 20) * np.array([1.0] + [10 ** (-s.tir_db / 20) for s in recipe.sources[1:]])
+    mix = np.tensordot((want / levels).astype(np.float32), images, axes=1)
+    mix *= np.float32(min(1.0, 0.99 / float(np.abs(mix).max())))
+    labels = [source_labels(recipe, k) for k in range(len(recipe.sources))]
+    az, el, dist = (np.stack([lab[i] for lab in labels]) for i in range(3))
+    return RenderedScene(recipe.scene_id, recipe.query, mix, az, el, dist, active,
+                         recipe.array.mics().astype(np.float32), {"scene_id": recipe.scene_id})
+
+
+def run_scenes(args) -> dict:
+    """Render and write ``recipes`` in this process; returns timing and peak RSS."""
+    recipes, renderer, out_dir = args
+    from tsel_data.store.writer import write_shard
+
+    render = {"ours": render_ours, "pra": render_pra_default}[renderer]
+    attrs = {"fs": FS, "label_hop": 0.1, "format": recipes[0].array.format,
+             "channel_names": list(CHANNEL_NAMES[recipes[0].array.format])}
+    t0 = time.perf_counter()
+    buf = []
+    for r in recipes:
+        buf.append(render(r))
+        if len(buf) == SHARD or r is recipes[-1]:
+            write_shard(out_dir, f"{renderer}-{recipes[0].scene_id}", r.index // SHARD, buf, attrs)
+            buf = []
+    elapsed = time.perf_counter() - t0
+    return {"n": len(recipes), "seconds": elapsed, "rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def in_worker(fn, args, processes: int = 1):
+    """Run ``fn`` on each of ``args`` in a fresh pool (fresh processes: clean peak RSS)."""
+    ctx = mp.get_context("fork")
+    with ctx.Pool(processes, maxtasksperchild=1) as pool:
+        return pool.map(fn, args)
+
+
+# --- T30 ----------------------------------------------------------------------------------
+def t30_ratios(args) -> list[float]:
+    family, method, n, seed = args
+    rng = np.random.default_rng([seed, 7, {"paper": 0, "realistic": 1}[family]])
+    out = []
+    for i in range(n):
+        r = sample_scene(rng, i, family, "mic4", method, "")
+        pts = np.array([s.position for s in r.sources])
+        rs = simulate_rirs(r.room, r.array, pts, FS, method=method, seed=r.seed)
+        measured = rs.rt60_measured if rs.rt60_measured is not None else t30(rs.rirs[0, 0], FS)
+        out.append(measured / r.room.rt60)
+    return out
+
+
+def summarise(ratios) -> str:
+    a = np.asarray(ratios)
+    return (f"n={len(a):3d}  min {a.min():.3f}  median {np.median(a):.3f}  max {a.max():.3f}  "
+            f"within ±10%: {np.mean(np.abs(a - 1) <= 0.10) * 100:5.1f}%")
+
+
+# --- main ------------------------------------------------------------------------------------
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--scenes", type=int, default=30, help="timed scenes per configuration, our methods")
+    ap.add_argument("--pra-scenes", type=int, default=8, help="timed scenes per room family, pyroomacoustics")
+    ap.add_argument("--ism-scenes", type=int, default=8, help="timed scenes per room family, rir_method=ism")
+    ap.add_argument("--t30-rooms", type=int, default=100, help="rooms per family for the hybrid T30 distribution")
+    ap.add_argument("--t30-rooms-slow", type=int, default=40, help="rooms per family for ism / pyroomacoustics T30")
+    ap.add_argument("--seed", type=int, default=0)
+    opts = ap.parse_args()
+
+    print(f"bench_simulated: {DURATION:.0f} s scenes at {FS} Hz, 2 static sources, 1 thread per worker, "
+          f"{os.cpu_count()} cores")
+    with tempfile.TemporaryDirectory(prefix="tsel-bench-") as tmp:
+        clip_dir = os.path.join(tmp, "clips")
+        os.makedirs(clip_dir)
+        make_clips(clip_dir)
+        out_dir = os.path.join(tmp, "out")
+
+        # warm-up (imports, FFT plans) so the first configuration is not penalised
+        in_worker(run_scenes, [(scenes(1, "paper", "mic4", "hybrid", clip_dir, seed=99), "ours", out_dir)])
+
+        print("\n== end to end (recipe -> shard on disk), per core ==")
+        print(f"{'rooms':10s} {'format':6s} {'method':16s} {'scenes':>6s} {'s/scene':>8s} {'scenes/s':>9s} "
+              f"{'peak RSS':>9s}  vs pyroomacoustics")
+        for family in ("paper", "realistic"):
+            base = None
+            rows = [("mic4", "pyroomacoustics", opts.pra_scenes), ("mic4", "hybrid", opts.scenes),
+                    ("mic4", "ism", opts.ism_scenes), ("foa", "hybrid", opts.scenes), ("foa", "ism", opts.ism_scenes)]
+            for fmt, method, n in rows:
+                if n <= 0:
+                    continue
+                renderer = "pra" if method == "pyroomacoustics" else "ours"
+                recs = scenes(n, family, fmt, method, clip_dir, seed=opts.seed)
+                (res,) = in_worker(run_scenes, [(recs, renderer, out_dir)])
+                per = res["seconds"] / res["n"]
+                if method == "pyroomacoustics":
+                    base = per
+                    note = "(default path: inverse_sabine + room.simulate)"
+                else:
+                    note = f"{base / per:6.1f}x" if (base and fmt == "mic4") else ""
+                print(f"{family:10s} {fmt:6s} {method:16s} {res['n']:6d} {per:8.3f} {1 / per:9.2f} "
+                      f"{res['rss_mib']:7.0f}MiB  {note}")
+
+        print("\n== 2 workers vs 1 (hybrid, mic4, paper rooms) ==")
+        n2 = max(2 * opts.scenes, 20)
+        recs = scenes(n2, "paper", "mic4", "hybrid", clip_dir, seed=opts.seed + 1)
+        t0 = time.perf_counter()
+        in_worker(run_scenes, [(recs, "ours", out_dir)], processes=1)
+        one = time.perf_counter() - t0
+        half = n2 // 2
+        t0 = time.perf_counter()
+        in_worker(run_scenes, [(recs[:half], "ours", out_dir), (recs[half:], "ours", out_dir)], processes=2)
+        two = time.perf_counter() - t0
+        print(f"{n2} scenes: 1 worker {one:.2f} s ({n2 / one:.2f} scenes/s), 2 workers {two:.2f} s "
+              f"({n2 / two:.2f} scenes/s): speed-up {one / two:.2f}x")
+
+        print("\n== T30 / requested RT60 (first RIR, omni; Schroeder -5..-35 dB) ==")
+        for family in ("paper", "realistic"):
+            for method, n in (("hybrid", opts.t30_rooms), ("ism", opts.t30_rooms_slow),
+                              ("pyroomacoustics", opts.t30_rooms_slow)):
+                if n <= 0:
+                    continue
+                chunks = [(family, method, n // 2, opts.seed), (family, method, n - n // 2, opts.seed + 1000)]
+                ratios = sum(in_worker(t30_ratios, chunks, processes=2), [])
+                print(f"{family:10s} {method:16s} {summarise(ratios)}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,105 @@
+"""Build an RIR bank from the shoebox simulator, in the TAU-SRIR DB's shape.
+
+Per room: a random shoebox (``dims`` ranges, RT60 range) with the array near its centre
+at a random yaw; sources on horizontal circles around the array, one per (distance,
+height offset) pair, a source every ``step_deg`` degrees of azimuth. Each circle is a
+closed circular trajectory (so moving sources can go round), like TAU's measured
+circles. All RIRs of a room come from one ``simulate_rirs`` call, so they share the
+room's acoustics (and the hybrid method's late-tail seed).
+
+Positions are exact: azimuth φ, elevation atan2(dz, r), distance hypot(r, dz) in the
+array frame. The RIR length is the simulator's (the latest direct path plus RT60, so
+tails are complete) unless ``rir_seconds`` cuts it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import GeometryError
+from ..geometry import array_to_room, sph_to_cart
+from ..recipe import ArrayPose, Room
+from . import BankError, MemoryBank, Trajectory, check_format
+
+DEMO = dict(n_rooms=1, distances=(1.0, 1.5), heights=(-0.3, 0.3), step_deg=10.0, rt60=(0.3, 0.45))
+
+
+def default_method(fmt: str) -> str:
+    """``hybrid`` when the project's simulator is present, else pyroomacoustics (omni only)."""
+    try:
+        from ..acoustics import shoebox  # noqa: F401
+
+        return "hybrid"
+    except ImportError:
+        if fmt == "foa":
+            raise BankError("building an FOA bank needs the project's shoebox simulator (rir method 'hybrid' or 'ism'), which is not installed") from None
+        return "pyroomacoustics"
+
+
+def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int = 24000,
+                  distances=(1.0, 1.5), heights=(-0.3, 0.0, 0.3), step_deg: float = 5.0,
+                  rt60=(0.3, 0.8), dims_min=(5.0, 4.5, 2.7), dims_max=(9.0, 7.0, 3.5),
+                  side: float = 0.11, method: str | None = None, rir_seconds: float | None = None,
+                  progress=None) -> MemoryBank:
+    """A simulated bank in memory (see the module docstring); write it with ``write_bank``."""
+    from ..acoustics import simulate_rirs
+
+    fmt = check_format(format)
+    method = method or default_method(fmt)
+    if fmt == "foa" and method == "pyroomacoustics":
+        raise BankError("the pyroomacoustics method renders omni capsules only; build FOA banks with method 'hybrid' or 'ism'")
+    distances = tuple(float(d) for d in distances)
+    heights = tuple(float(h) for h in heights)
+    if not distances or min(distances) <= 0 or step_deg <= 0 or n_rooms < 1:
+        raise BankError("bank build needs positive distances, a positive step and at least one room")
+    az = np.arange(-180.0, 180.0 - 1e-9, float(step_deg))
+    rooms, info = {}, {}
+    for i in range(n_rooms):
+        rng = np.random.default_rng([int(seed), i])
+        dims = rng.uniform(dims_min, dims_max)
+        reach = max(distances) + 0.3  # ring radius plus a margin to the walls
+        slack = dims[:2] / 2 - reach
+        if np.any(slack < 0):
+            raise GeometryError(f"room {np.round(dims, 2).tolist()} cannot hold a {max(distances)} m ring; use smaller distances or larger rooms")
+        z_lo, z_hi = 0.3 - min(heights + (0.0,)), dims[2] - 0.3 - max(heights + (0.0,))
+        if z_hi < z_lo:
+            raise GeometryError(f"room height {dims[2]:.2f} m cannot hold height offsets {heights}")
+        centre = np.r_[dims[:2] / 2 + rng.uniform(-1, 1, 2) * np.minimum(slack, 0.5), rng.uniform(z_lo, min(z_hi, max(z_lo, 1.5)))]
+        yaw = float(rng.uniform(-180.0, 180.0))
+        room = Room(tuple(np.round(dims, 3).tolist()), float(np.round(rng.uniform(*rt60), 3)))
+        array = ArrayPose(fmt, tuple(np.round(centre, 3).tolist()), round(yaw, 2), side if fmt == "mic4" else None)
+        rings, pts = [], []
+        for di, r in enumerate(distances):
+            for hi, dz in enumerate(heights):
+                p_arr = sph_to_cart(az, 0.0, r) + np.array([0.0, 0.0, dz])
+                rings.append((f"r{di}h{hi}", r, dz))
+                pts.append(p_arr)
+        p_arr = np.concatenate(pts)
+        rirs = simulate_rirs(room, array, array_to_room(p_arr, array.centre, array.yaw), fs, method=method, seed=int(rng.integers(2**31))).rirs
+        if rir_seconds:
+            rirs = rirs[:, :, : int(round(rir_seconds * fs))]
+        name = f"sim{i + 1:02d}"
+        items = []
+        for j, (tid, r, dz) in enumerate(rings):
+            pos = np.stack([az, np.full_like(az, np.degrees(np.arctan2(dz, r))), np.full_like(az, np.hypot(r, dz))], axis=-1)
+            items.append((Trajectory(name, tid, "circular", pos, True), rirs[j * len(az) : (j + 1) * len(az)]))
+        rooms[name] = items
+        info[name] = {
+            "number": i + 1,
+            "dims": list(room.dims),
+            "rt60": room.rt60,
+            "array": {"format": fmt, "centre": list(array.centre), "yaw": array.yaw, "side": array.side},
+            "method": method,
+        }
+        if progress:
+            progress(name)
+    return MemoryBank(fs, fmt, rooms, info, source=f"simulated ({method})")
+
+
+def build_bank(out, format: str = "mic4", n_rooms: int = 2, seed: int = 0, **kwargs):
+    """Simulate a bank and write it to ``out`` (native format). Returns the path."""
+    from .native import write_bank
+
+    bank = simulate_bank(format=format, n_rooms=n_rooms, seed=seed, **kwargs)
+    prov = {"builder": "tsel bank build", "seed": int(seed), "n_rooms": int(n_rooms),
+            **{k: (list(v) if isinstance(v, tuple) else v) for k, v in kwargs.items() if k != "progress"}}
+    return write_bank(out, bank, provenance=prov)

@@ -1,0 +1,124 @@
+"""``tsel bank``: import measured RIR banks, build simulated ones, summarise any bank."""
+from __future__ import annotations
+
+import json
+
+import click
+
+from ..banks import BankError, open_bank
+
+
+def _floats(text: str, what: str) -> tuple:
+    try:
+        return tuple(float(v) for v in text.replace(",", " ").split())
+    except ValueError:
+        raise BankError(f"--{what}: expected numbers separated by commas, got {text!r}") from None
+
+
+def _rooms(values) -> list | None:
+    out = [r for v in values for r in v.replace(",", " ").split()]
+    return out or None
+
+
+@click.group("bank")
+def bank():
+    """RIR banks: import TAU-SRIR DB / SOFA rooms, build simulated banks, show what a bank holds."""
+
+
+@bank.group("import")
+def import_group():
+    """Convert a measured bank to the toolkit's HDF5 bank format."""
+
+
+@import_group.command("tau")
+@click.option("--src", required=True, type=click.Path(), help="The TAU-SRIR_DB directory (rirdata.mat, measinfo.mat, rirs_NN_<room>.mat).")
+@click.option("--out", required=True, type=click.Path(dir_okay=False), help="Bank file to write (.h5).")
+@click.option("--rooms", multiple=True, help="Rooms to keep, by name or number (e.g. '1,2,tc352'); default all.")
+@click.option("--format", "fmt", type=click.Choice(["foa", "mic"]), default="foa", show_default=True, help="Which TAU format to import (mic = tetrahedral).")
+def import_tau(src, out, rooms, fmt):
+    """Import the TAU-SRIR DB as distributed (reads each trajectory once, never a whole file)."""
+    from ..banks.native import write_bank
+
+    with open_bank(src, kind="tau", format=fmt) as b:
+        path = write_bank(out, b, rooms=_rooms(rooms), provenance={"importer": "tsel bank import tau"},
+                          progress=lambda room, t: click.echo(f"  {room} {t.id}: {len(t)} RIRs", err=True))
+    click.echo(f"wrote {path}")
+
+
+@import_group.command("sofa")
+@click.argument("files", nargs=-1, required=True, type=click.Path())
+@click.option("--out", required=True, type=click.Path(dir_okay=False), help="Bank file to write (.h5).")
+@click.option("--format", "fmt", type=click.Choice(["foa", "mic", "tetra", "mic4"]), default=None, help="Array format, if the files do not say (SpatialScaper's _foa/_mic suffix does).")
+@click.option("--rooms", multiple=True, help="Rooms to keep (default all).")
+@click.option("--grouping", type=click.Choice(["auto", "rings", "runs"]), default="auto", show_default=True, help="How positions are grouped into trajectories (docs/banks.md).")
+def import_sofa(files, out, fmt, rooms, grouping):
+    """Import SOFA SingleRoomSRIR files (one room each), e.g. SpatialScaper's <room>_foa.sofa."""
+    from ..banks.native import write_bank
+    from ..banks.sofa import SofaBank
+
+    with SofaBank(list(files) if len(files) > 1 else files[0], format=fmt, grouping=grouping) as b:
+        path = write_bank(out, b, rooms=_rooms(rooms), provenance={"importer": "tsel bank import sofa"})
+    click.echo(f"wrote {path}")
+
+
+@bank.command("info")
+@click.argument("path", type=click.Path())
+@click.option("--format", "fmt", default=None, help="For sources holding several formats (TAU: foa or mic).")
+@click.option("--trajectories", "show_traj", is_flag=True, help="List every trajectory.")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+def info(path, fmt, show_traj, as_json):
+    """Summarise a bank: rooms, format, RIR count, trajectories, azimuth/elevation coverage."""
+    with open_bank(path, format=fmt) as b:
+        s = b.summary()
+        if show_traj:
+            for r in s["rooms"]:
+                r["trajectory_list"] = [
+                    {"id": str(t.id), "kind": t.kind, "closed": t.closed, "rirs": len(t),
+                     "azimuth": [round(float(t.positions[0, 0]), 1), round(float(t.positions[-1, 0]), 1)],
+                     "elevation_mean": round(float(t.positions[:, 1].mean()), 1),
+                     "distance_mean": round(float(t.positions[:, 2].mean()), 2)}
+                    for t in b.trajectories(r["room"])
+                ]
+    if as_json:
+        click.echo(json.dumps(s, indent=1))
+        return
+    click.echo(f"{s['source']}  ({s['kind']}, {s['format']} {'/'.join(s['channels'])}, {s['fs']} Hz, {s['rirs']} RIRs)")
+    for r in s["rooms"]:
+        num = f" #{r['number']}" if "number" in r else ""
+        el, d = r["elevation_range_deg"], r["distance_range_m"]
+        click.echo(
+            f"  {r['room']}{num}: {r['rirs']} RIRs in {r['trajectories']} {'/'.join(r['kinds'])} trajectories; "
+            f"azimuth coverage {r['azimuth_coverage_deg']:.0f} deg, elevation {el[0]}..{el[1]} deg, distance {d[0]}..{d[1]} m"
+        )
+        for t in r.get("trajectory_list", []):
+            click.echo(f"    {t['id']}: {t['kind']}{' (closed)' if t['closed'] else ''}, {t['rirs']} RIRs, "
+                       f"az {t['azimuth'][0]}..{t['azimuth'][1]}, el {t['elevation_mean']}, dist {t['distance_mean']} m")
+
+
+@bank.command("build")
+@click.option("--out", required=True, type=click.Path(dir_okay=False), help="Bank file to write (.h5).")
+@click.option("--format", "fmt", type=click.Choice(["mic4", "foa", "tetra"]), default="mic4", show_default=True)
+@click.option("--rooms", "n_rooms", type=int, default=2, show_default=True, help="Number of simulated rooms.")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--fs", type=int, default=24000, show_default=True)
+@click.option("--distances", default="1.0,1.5", show_default=True, help="Ring radii around the array (m).")
+@click.option("--heights", default="-0.3,0,0.3", show_default=True, help="Ring heights relative to the array (m).")
+@click.option("--step", "step_deg", type=float, default=5.0, show_default=True, help="Azimuth step along each ring (deg).")
+@click.option("--rt60", default="0.3,0.8", show_default=True, help="RT60 range (s).")
+@click.option("--side", type=float, default=0.11, show_default=True, help="mic4 square side (m).")
+@click.option("--method", type=click.Choice(["hybrid", "ism", "pyroomacoustics"]), default=None, help="RIR simulator (default hybrid).")
+@click.option("--rir-seconds", type=float, default=None, help="Cut RIRs to this length (default: full decay).")
+@click.option("--demo", is_flag=True, help="A small, fast bank (1 room, 2 rings x 2 heights, 10 deg steps).")
+def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side, method, rir_seconds, demo):
+    """Simulate a bank in the TAU-SRIR DB's shape: circular trajectories around the array."""
+    from ..banks.build import DEMO, build_bank
+
+    kw = dict(distances=_floats(distances, "distances"), heights=_floats(heights, "heights"), step_deg=step_deg,
+              rt60=_floats(rt60, "rt60"), fs=fs, side=side, method=method, rir_seconds=rir_seconds)
+    if len(kw["rt60"]) != 2:
+        raise BankError("--rt60: give a range 'lo,hi' in seconds")
+    if demo:
+        kw.update({k: v for k, v in DEMO.items() if k != "n_rooms"})
+        n_rooms = DEMO["n_rooms"]
+    path = build_bank(out, format=fmt, n_rooms=n_rooms, seed=seed, **kw)
+    click.echo(f"wrote {path}")
