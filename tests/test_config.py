@@ -74,3 +74,20 @@ def test_distribution_sampling_is_reproducible_and_in_range():
     assert {c.sample(np.random.default_rng(i)) for i in range(20)} == {"b"}
     t = Dist.parse(["truncnorm", 0.0, 10.0, -1.0, 1.0], "x")
     assert all(-1 <= t.sample(np.random.default_rng(i)) <= 1 for i in range(50))
+
+
+def test_presets_print_as_toml_that_loads_back(tmp_path):
+    from tsel_data.config import to_toml
+
+    for name in preset_names():
+        c = load_config(preset=name)
+        p = tmp_path / f"{name}.toml"
+        p.write_text(to_toml(c))
+        assert load_config(path=str(p)) == c
+
+
+def test_relative_paths_in_a_config_file_resolve_against_its_folder(tmp_path):
+    (tmp_path / "sub").mkdir()
+    p = tmp_path / "sub" / "c.toml"
+    p.write_text('[corpus]\ndir = "../corpus"\n')
+    assert load_config(path=str(p)).corpus.dir == str(tmp_path / "sub" / "../corpus")

@@ -147,8 +147,9 @@ def load_config(preset: str | None = None, path: str | None = None, overrides: l
             raise ConfigError(f"config file not found: {path}")
         user = _read_toml(path, path)
         base_dir = os.path.dirname(os.path.abspath(path))
-        if user.get("corpus", {}).get("dir"):
-            user["corpus"]["dir"] = os.path.join(base_dir, user["corpus"]["dir"])
+        cdir = user.get("corpus", {}).get("dir")
+        if cdir and not cdir.startswith("builtin:"):
+            user["corpus"]["dir"] = os.path.join(base_dir, os.path.expanduser(cdir))
         if user.get("room", {}).get("bank"):
             user["room"]["bank"] = os.path.join(base_dir, user["room"]["bank"])
         raw = _merge(raw, user)
@@ -330,3 +331,26 @@ def _to_plain(x):
     if isinstance(x, tuple):
         return [_to_plain(v) for v in x]
     return x
+
+
+def to_toml(cfg: Config) -> str:
+    """The config as TOML that ``load_config(path=...)`` reads back to the same Config."""
+    d = cfg.to_dict()
+    lines = [f"{k} = {_toml_value(d[k])}" for k in ("name", "seed", "on_bad_clip")]
+    for sec in SECTIONS:
+        lines += ["", f"[{sec}]"] + [f"{k} = {_toml_value(v)}" for k, v in d[sec].items()]
+    for name, sp in d["splits"].items():
+        lines += ["", f"[splits.{name}]"] + [f"{k} = {_toml_value(v)}" for k, v in sp.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _toml_value(v) -> str:
+    import json
+
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)  # a JSON string is a valid TOML basic string
+    return repr(v)

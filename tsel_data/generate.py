@@ -15,13 +15,13 @@ from __future__ import annotations
 import json
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 from . import __version__
 from .catalog import build_catalog, write_bad_clips
 from .config import Config, parse_config
 from .errors import DatasetError
+from .executors import Runner
 from .plan import CatalogView, plan_split_json
 from .recipe import SceneRecipe, read_plan
 from .store.writer import FORMAT_VERSION, shard_names, sha256_file, write_shard
@@ -125,22 +125,19 @@ def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attr
     return len(scenes)
 
 
-def _worker_init():
-    # one thread per worker: pyroomacoustics reads PRA_NUM_THREADS, BLAS its own variables
-    for var in ("PRA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = "1"
-
-
 def _render_task(args) -> tuple[ShardTask, int]:
     out_dir, task, recipes, attrs = args
     return task, render_shard(out_dir, task, recipes, attrs)
 
 
-def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, progress: bool = True) -> dict:
+def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, progress: bool = True,
+                  executor: str = "local", scheduler: str | None = None) -> dict:
     """Render the plan's shards (all, or the indices in ``shards`` of the global shard list).
 
-    Complete shards are skipped. Returns {split: scenes rendered now}.
+    Complete shards are skipped. ``executor``: local | dask | dask-local (executors.py).
+    Returns {split: scenes rendered now}.
     """
+    out_dir = os.path.abspath(out_dir)  # dask workers may run elsewhere on a shared filesystem
     cfg, plans = load_plan(out_dir)
     tasks = shard_tasks(cfg, plans)
     if shards is not None:
@@ -151,8 +148,7 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
     todo = [t for t in tasks if not shard_complete(out_dir, t)]
     attrs = shard_attrs(cfg)
     done: dict[str, int] = {s: 0 for s in plans}
-    pool = ProcessPoolExecutor(workers, initializer=_worker_init) if workers > 1 and len(todo) > 1 else None
-    try:
+    with Runner(executor, workers if len(todo) > 1 else 1, scheduler) as runner:
         # split by split, so each split gets its own progress bar and rate
         for split in plans:
             jobs = [(out_dir, t, plans[t.split][t.start:t.stop], attrs) for t in todo if t.split == split]
@@ -160,18 +156,10 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
             if not total:
                 continue
             bar = _bar(split, total, total - sum(j[1].stop - j[1].start for j in jobs), progress)
-            if pool is None:
-                _worker_init()
-                results = map(_render_task, jobs)
-            else:
-                results = (f.result() for f in as_completed([pool.submit(_render_task, j) for j in jobs]))
-            for t, n in results:
+            for t, n in runner.map_unordered(_render_task, jobs):
                 done[t.split] += n
                 bar.update(n)
             bar.close()
-    finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
     return done
 
 
@@ -221,12 +209,13 @@ def finalize(out_dir: str) -> dict:
     return doc
 
 
-def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, progress: bool = True) -> dict:
+def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, progress: bool = True,
+             executor: str = "local", scheduler: str | None = None) -> dict:
     """Plan, render and finalize a dataset. Returns a summary dict."""
     t0 = time.perf_counter()
     plan_dataset(cfg, out_dir, workers=workers, resume=resume)
     t1 = time.perf_counter()
-    rendered = render_shards(out_dir, workers=workers, progress=progress)
+    rendered = render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
     t2 = time.perf_counter()
     doc = finalize(out_dir)
     bad = 0

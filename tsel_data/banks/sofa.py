@@ -19,8 +19,8 @@ file-name suffix; ``mic`` means the DCASE tetrahedral format (``tetra``).
 
 Trajectories: SOFA has no trajectory grouping. With ``grouping="auto"`` the file order
 is used when it is a path (runs of neighbouring positions, split where a step is much
-longer than the typical one — SpatialScaper stores each TAU trajectory and height in
-path order); otherwise positions are grouped into rings of equal height and equal
+longer than the typical one or changes height or horizontal distance by more than
+``ring_tol`` — SpatialScaper stores each TAU trajectory and height in path order); otherwise positions are grouped into rings of equal height and equal
 horizontal distance (gaps over ``ring_tol`` m split them) and each ring is sorted by
 azimuth. ``grouping="rings"`` or ``"runs"`` forces one. Ids are ``"g{i}"``.
 """
@@ -192,7 +192,7 @@ def _frames(view, up, path) -> np.ndarray:
 def _group(room, pos: np.ndarray, grouping: str, tol: float):
     """[(Trajectory, row numbers in the file)] — see the module docstring."""
     M = len(pos)
-    runs = _runs(pos) if grouping in ("auto", "runs") else None
+    runs = _runs(pos, tol) if grouping in ("auto", "runs") else None
     if runs is not None and (grouping == "runs" or M / len(runs) >= 10):
         groups = runs
     else:
@@ -210,13 +210,17 @@ def _group(room, pos: np.ndarray, grouping: str, tol: float):
     return out
 
 
-def _runs(pos: np.ndarray):
+def _runs(pos: np.ndarray, tol: float):
+    """Split the file order where a step jumps: 4x the median step, or a change of height or
+    horizontal distance over ``tol`` m in one step (rings and lines keep both smooth)."""
     if len(pos) < 2:
         return [np.arange(len(pos))]
     xyz = sph_to_cart(pos[:, 0], pos[:, 1], pos[:, 2])
-    jump = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
+    d = np.diff(xyz, axis=0)
+    jump = np.linalg.norm(d, axis=1)
     med = float(np.median(jump))
-    cut = np.nonzero(jump > max(4.0 * med, 1e-6))[0] + 1
+    d_rh = np.diff(np.hypot(xyz[:, 0], xyz[:, 1]))
+    cut = np.nonzero((jump > max(4.0 * med, 1e-6)) | (np.abs(d[:, 2]) > tol) | (np.abs(d_rh) > tol))[0] + 1
     return [r for r in np.split(np.arange(len(pos)), cut)]
 
 

@@ -42,18 +42,29 @@ def _workers(n):
     return n if n else (os.cpu_count() or 1)
 
 
+def _executor_options(f):
+    f = click.option("--scheduler", metavar="tcp://HOST:PORT", help="Dask scheduler address (--executor dask).")(f)
+    f = click.option("--executor", type=click.Choice(["local", "dask", "dask-local"]), default="local",
+                     show_default=True, help="Where shards render: a process pool, a Dask cluster, or a local "
+                     "Dask cluster of --workers processes.")(f)
+    return f
+
+
 @click.command("generate")
 @_config_options
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
 @click.option("--resume", is_flag=True, help="Continue an interrupted run in --out.")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
-def generate_cmd(preset, config_path, corpus_dir, splits, seed, overrides, out_dir, workers, resume, quiet):
+@_executor_options
+def generate_cmd(preset, config_path, corpus_dir, splits, seed, overrides, out_dir, workers, resume, quiet,
+                 executor, scheduler):
     """Plan, render and finalize a dataset in one go."""
     from ..generate import generate
 
     cfg = _load(preset, config_path, corpus_dir, splits, seed, overrides)
-    s = generate(cfg, out_dir, workers=_workers(workers), resume=resume, progress=not quiet)
+    s = generate(cfg, out_dir, workers=_workers(workers), resume=resume, progress=not quiet, executor=executor,
+                 scheduler=scheduler)
     total = sum(s["splits"].values())
     rate = sum(s["rendered_now"].values()) / s["render_seconds"] if s["render_seconds"] > 0 else 0.0
     click.echo(f"dataset {cfg.name} in {out_dir}: " + ", ".join(f"{k} {v}" for k, v in s["splits"].items())
@@ -95,11 +106,13 @@ def _parse_range(text: str | None):
 @click.option("--shards", help="A range of global shard numbers, e.g. 0-99 (default: all).")
 @click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
 @click.option("--quiet", is_flag=True)
-def render_cmd(out_dir, shards, workers, quiet):
+@_executor_options
+def render_cmd(out_dir, shards, workers, quiet, executor, scheduler):
     """Render planned shards (skips complete ones), for job arrays."""
     from ..generate import render_shards
 
-    done = render_shards(out_dir, _parse_range(shards), workers=_workers(workers), progress=not quiet)
+    done = render_shards(out_dir, _parse_range(shards), workers=_workers(workers), progress=not quiet,
+                         executor=executor, scheduler=scheduler)
     click.echo("rendered " + ", ".join(f"{k} {v}" for k, v in done.items()) + " scenes")
 
 

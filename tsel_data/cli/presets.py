@@ -1,17 +1,15 @@
-"""``tsel presets``: list presets, or print one resolved as TOML-like text."""
-import json
-
+"""``tsel presets``: list presets, or print one fully resolved as TOML."""
 import click
 
 
 @click.command("presets")
 @click.argument("name", required=False)
 def presets_cmd(name):
-    """List the built-in presets, or show NAME fully resolved (every default filled in)."""
-    from ..config import load_config, preset_names
+    """List the built-in presets, or print NAME as a complete TOML config to start from."""
+    from ..config import load_config, preset_names, to_toml
 
     if not name:
         for p in preset_names():
             click.echo(p)
         return
-    click.echo(json.dumps(load_config(preset=name).to_dict(), indent=2))
+    click.echo(to_toml(load_config(preset=name)), nl=False)
