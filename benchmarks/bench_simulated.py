@@ -161,7 +161,14 @@ def run_scenes(args) -> dict:
             write_shard(out_dir, f"{renderer}-{recipes[0].scene_id}", r.index // SHARD, buf, attrs)
             buf = []
     elapsed = time.perf_counter() - t0
-    return {"n": len(recipes), "seconds": elapsed, "rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+    rir_ms = float("nan")
+    if renderer == "ours":  # the simulator's share of the time: RIRs alone, same recipes
+        t1 = time.perf_counter()
+        for r in recipes:
+            simulate_rirs(r.room, r.array, np.array([s.position for s in r.sources]), FS, r.rir_method, r.seed)
+        rir_ms = (time.perf_counter() - t1) / len(recipes) * 1000
+    return {"n": len(recipes), "seconds": elapsed, "rir_ms": rir_ms,
+            "rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
 def in_worker(fn, args, processes: int = 1):
@@ -214,8 +221,9 @@ def main() -> None:
         in_worker(run_scenes, [(scenes(1, "paper", "mic4", "hybrid", clip_dir, seed=99), "ours", out_dir)])
 
         print("\n== end to end (recipe -> shard on disk), per core ==")
+        print("(other processes share the cores: the load average before each row is shown)")
         print(f"{'rooms':10s} {'format':6s} {'method':16s} {'scenes':>6s} {'s/scene':>8s} {'scenes/s':>9s} "
-              f"{'peak RSS':>9s}  vs pyroomacoustics")
+              f"{'RIRs ms':>8s} {'peak RSS':>9s} {'load':>5s}  vs pyroomacoustics")
         for family in ("paper", "realistic"):
             base = None
             rows = [("mic4", "pyroomacoustics", opts.pra_scenes), ("mic4", "hybrid", opts.scenes),
@@ -225,6 +233,7 @@ def main() -> None:
                     continue
                 renderer = "pra" if method == "pyroomacoustics" else "ours"
                 recs = scenes(n, family, fmt, method, clip_dir, seed=opts.seed)
+                load = os.getloadavg()[0]
                 (res,) = in_worker(run_scenes, [(recs, renderer, out_dir)])
                 per = res["seconds"] / res["n"]
                 if method == "pyroomacoustics":
@@ -233,12 +242,13 @@ def main() -> None:
                 else:
                     note = f"{base / per:6.1f}x" if (base and fmt == "mic4") else ""
                 print(f"{family:10s} {fmt:6s} {method:16s} {res['n']:6d} {per:8.3f} {1 / per:9.2f} "
-                      f"{res['rss_mib']:7.0f}MiB  {note}")
+                      f"{res['rir_ms']:8.1f} {res['rss_mib']:6.0f}MiB {load:5.2f}  {note}")
 
         print("\n== 2 workers vs 1 (hybrid, mic4, paper rooms) ==")
         n2 = max(2 * opts.scenes, 20)
         recs = scenes(n2, "paper", "mic4", "hybrid", clip_dir, seed=opts.seed + 1)
         half = n2 // 2
+        print(f"load average before: {os.getloadavg()[0]:.2f}")
         t0 = time.perf_counter()
         (r1,) = in_worker(run_scenes, [(recs, "ours", out_dir)], processes=1)
         wall1 = time.perf_counter() - t0

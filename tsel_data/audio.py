@@ -34,6 +34,10 @@ def load_clip(path: str, fs: int, duration: float, offset: float = 0.0) -> np.nd
             x = f.read(frames=need, dtype="float32", always_2d=True)
     except (sf.LibsndfileError, RuntimeError, OSError) as e:
         raise AudioError(f"cannot read audio {path}: {e}; check the file or remove it from the manifest") from None
+    if not np.all(np.isfinite(x)):
+        # corpus.check below "full" lets such clips through; never mix NaN into a scene
+        raise AudioError(f"{path} contains NaN or Inf samples; fix or remove the clip "
+                         f"(corpus.check = \"full\" finds such clips before rendering)")
     x = x.mean(axis=1) if x.shape[1] > 1 else x[:, 0]
     if sr != fs:
         g = math.gcd(int(sr), int(fs))
@@ -105,6 +109,8 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
         return ClipCheck(clip_id, f"audio file not found: {path}")
     if level == "exists":
         return ClipCheck(clip_id, None)
+    if os.path.getsize(path) == 0:
+        return ClipCheck(clip_id, f"empty audio file {path} (0 bytes)")
     try:
         info = sf.info(path)
     except (sf.LibsndfileError, RuntimeError, OSError) as e:
@@ -116,7 +122,7 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
     if info.channels > max_channels:
         return ClipCheck(clip_id, f"{path} has {info.channels} channels (more than corpus.max_channels = {max_channels})", **base)
     if dur - offset < min_duration:
-        return ClipCheck(clip_id, f"{path} is {dur - offset:.2f} s long (shorter than corpus.min_duration = {min_duration} s)", **base)
+        return ClipCheck(clip_id, f"{path} is {dur - offset:.3f} s long (shorter than corpus.min_duration = {min_duration} s)", **base)
     if level == "header":
         return ClipCheck(clip_id, None, **base)
     try:

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from .audio import ClipCheck, check_clip
 from .clip import Clip
 from .config import Config
-from .errors import AudioError, ConfigError, TselError
+from .errors import AudioError, ConfigError, ManifestError, TselError
 
 BUILTIN_DEMO = "builtin:demo"
 
@@ -70,10 +70,14 @@ def build_catalog(cfg: Config, out_dir: str, workers: int = 1) -> Catalog:
     corpus_dir = resolve_corpus_dir(cfg, out_dir)
     clips: dict[str, list[Clip]] = {}
     bad: list[dict] = []
+    seen: dict = {}
     for split, sp in cfg.splits.items():
         if sp.count == 0:
             continue
         all_clips = read_split_clips(cfg, split, corpus_dir)
+        dup = duplicate_clips(all_clips, split, seen)
+        if dup:
+            raise ManifestError(dup[0] + (f" (and {len(dup) - 1} more)" if len(dup) > 1 else ""))
         checks = check_clips(all_clips, cfg, workers)
         good = []
         for clip, chk in zip(all_clips, checks):
@@ -90,6 +94,22 @@ def build_catalog(cfg: Config, out_dir: str, workers: int = 1) -> Catalog:
             raise TselError(f"split {split}: only {len(good)} usable clips in {sp.manifest}; a scene needs two")
         clips[split] = good
     return Catalog(clips, bad)
+
+
+def duplicate_clips(clips: list[Clip], split: str, seen: dict) -> list[str]:
+    """One-line problems for clip ids that repeat within ``clips`` or occur in an earlier
+    split (a clip in two splits leaks into evaluation). ``seen`` ({id: (split, origin)})
+    carries ids across splits; it is updated."""
+    out = []
+    for c in clips:
+        prev = seen.get(c.id)
+        if prev is None:
+            seen[c.id] = (split, c.origin)
+            continue
+        where = prev[1] if prev[0] == split else f"{prev[1]}, split {prev[0]}"
+        out.append(f"{c.origin}: duplicate clip id {c.id!r} (also at {where}); a clip may appear once and in one "
+                   f"split: remove the duplicate")
+    return out
 
 
 def check_clips(clips: list[Clip], cfg: Config, workers: int = 1) -> list[ClipCheck]:

@@ -59,6 +59,7 @@ class SceneConfig:
     interferers: Dist = _d(1)
     tir_db: Dist = _d(["uniform", -5.0, 5.0])
     min_separation: float = 20.0  # degrees of azimuth between directional sources
+    separated_frames: float = 0.8  # fraction of label frames on which min_separation must hold (moving sources)
     caption_similarity: float = 0.5  # max word-overlap (Jaccard) between query and other sources' captions
     motion: str = "static"  # static | moving | mixed
     moving_fraction: float = 0.5
@@ -157,6 +158,8 @@ def load_config(preset: str | None = None, path: str | None = None, overrides: l
         raw = _merge(raw, _parse_override(ov))
     if flags.get("corpus_dir"):
         raw.setdefault("corpus", {})["dir"] = flags["corpus_dir"]
+    if flags.get("bank"):
+        raw.setdefault("room", {})["bank"] = os.path.abspath(os.path.expanduser(flags["bank"]))
     if flags.get("seed") is not None:
         raw["seed"] = flags["seed"]
     for name, count in (flags.get("splits") or {}).items():
@@ -205,6 +208,17 @@ def validate_config(cfg: Config, where: str = "config") -> None:
     for name, sp in cfg.splits.items():
         if not isinstance(sp.count, int) or sp.count < 0:
             raise ConfigError(f"{where}: splits.{name}.count must be a non-negative integer, got {sp.count!r}")
+    if not 0.0 < cfg.scene.separated_frames <= 1.0:
+        raise ConfigError(f"{where}: scene.separated_frames must be in (0, 1], got {cfg.scene.separated_frames}")
+    if not 0.0 <= cfg.scene.moving_fraction <= 1.0:
+        raise ConfigError(f"{where}: scene.moving_fraction must be in [0, 1], got {cfg.scene.moving_fraction}")
+    sb = cfg.scene.speed.bounds
+    if sb is None or sb[0] < 0:
+        raise ConfigError(f"{where}: scene.speed must be non-negative degrees per second")
+    roomed = [n for n, sp in cfg.splits.items() if sp.rooms]
+    if roomed and not cfg.room.bank:
+        raise ConfigError(f"{where}: splits.{roomed[0]}.rooms names RIR-bank rooms but room.bank is not set; "
+                          f"pass --bank PATH (or --set room.bank='\"PATH\"')")
     nb = cfg.scene.interferers.bounds
     if nb is None or nb[0] < 1:
         raise ConfigError(f"{where}: scene.interferers must be >= 1 (a scene holds at least two sources)")

@@ -22,7 +22,7 @@ from .catalog import build_catalog, write_bad_clips
 from .config import Config, parse_config
 from .errors import DatasetError
 from .executors import Runner
-from .plan import CatalogView, plan_split_json
+from .plan import CatalogView, plan_split_json, resolve_bank
 from .recipe import SceneRecipe, read_plan
 from .store.writer import FORMAT_VERSION, shard_names, sha256_file, write_shard
 
@@ -66,10 +66,11 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
         return {s: sp.count for s, sp in cfg.splits.items()}
     os.makedirs(os.path.join(out_dir, PLAN_DIR), exist_ok=True)
     catalog = build_catalog(cfg, out_dir, workers=workers)
+    bank_path = resolve_bank(cfg, out_dir)
     write_bad_clips(os.path.join(out_dir, "bad_clips.jsonl"), catalog.bad)
     counts = {}
     for split, sp in cfg.splits.items():
-        lines = plan_split_json(cfg, split, CatalogView(catalog.clips[split]), workers) if sp.count else []
+        lines = plan_split_json(cfg, split, CatalogView(catalog.clips[split], bank_path), workers) if sp.count else []
         _write_lines(os.path.join(out_dir, PLAN_DIR, f"{split}.jsonl"), lines)
         counts[split] = len(lines)
     doc = {"tool": "tsel-data", "version": __version__, "config": cfg.to_dict(),

@@ -7,6 +7,7 @@ on the order scenes are planned in, or on how many workers plan them.
 from __future__ import annotations
 
 import math
+import os
 import zlib
 
 import numpy as np
@@ -21,15 +22,17 @@ MAX_TRIES = 200
 
 
 class CatalogView:
-    """A split's clips with their caption tokens precomputed (shared by every scene)."""
+    """A split's clips with their caption tokens precomputed (shared by every scene), and
+    the resolved path of the RIR bank when scenes use one."""
 
-    def __init__(self, clips: list[Clip]):
+    def __init__(self, clips: list[Clip], bank_path: str | None = None):
         if len(clips) < 2:
             raise TselError(f"a split needs at least 2 usable clips to make scenes, it has {len(clips)}")
         self.clips = clips
         self.tokens = [tuple(tokens(c) for c in clip.captions) for clip in clips]
         # clips cut from the same recording (AudioCaps: same YouTube video) are one sound source
         self.source_key = [c.meta.get("youtube_id") or c.audio for c in clips]
+        self.bank_path = bank_path
 
 
 def scene_rng(seed: int, split: str, index: int) -> np.random.Generator:
@@ -57,22 +60,24 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     spatial = ["directional"] + ["additive" if (scenario == "directional+additive" and k == 0) else "directional"
                                  for k in range(n_int)]
     tir = [None] + [float(sc.tir_db.sample(rng)) for _ in range(n_int)]
-    room, array, positions = _place(cfg, rng, spatial, split, index)
+    if cat.bank_path:
+        room, array, places, extra = _place_bank(cfg, rng, spatial, split, index, cat.bank_path)
+    else:
+        (room, array, places), extra = _place(cfg, rng, spatial, split, index), {}
     sources = []
     for k, ci in enumerate(chosen):
         clip = cat.clips[ci]
         sources.append(Source(
             role="target" if k == 0 else "interferer", clip_id=clip.id, audio=clip.audio,
             captions=clip.captions, spatial=spatial[k], offset=clip.offset,
-            position=None if positions[k] is None else tuple(round(float(v), 6) for v in positions[k]),
-            tir_db=None if tir[k] is None else round(tir[k], 4),
+            tir_db=None if tir[k] is None else round(tir[k], 4), **(places[k] or {}),
         ))
     a = cfg.audio
     recipe = SceneRecipe(
         scene_id=f"{split}-{index:06d}", split=split, index=index, seed=int(rng.integers(2**31 - 1)),
         scenario=scenario, query=query, array=array, sources=tuple(sources), room=room,
         fs=a.fs, duration=a.duration, label_hop=a.label_hop, rir_method=cfg.room.rir_method,
-        target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db,
+        target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db, extra=extra,
     )
     return recipe.validate(wall_margin=cfg.sources.wall_margin - 1e-6)
 
@@ -93,13 +98,14 @@ def _pick_interferer(rng, cat: CatalogView, chosen: list[int], query_tokens, max
 
 
 def _place(cfg: Config, rng, spatial: list[str], split: str, index: int):
-    """Room, array pose and room-frame positions (None for additive sources)."""
+    """Room, array pose and each source's placement (Source fields; None for additive)."""
     rc, ac, srcc = cfg.room, cfg.array, cfg.sources
     fmt = cfg.scene.format
     dims = (float(rc.length.sample(rng)), float(rc.width.sample(rng)), float(rc.height.sample(rng)))
     room = Room(tuple(round(d, 4) for d in dims), round(float(rc.rt60.sample(rng)), 4))
     side = round(float(ac.side.sample(rng)), 5) if fmt == "mic4" else None
     yaw = round(float(ac.yaw.sample(rng)), 4)
+    moving = [sp == "directional" and _moves(cfg, rng) for sp in spatial]
     for _ in range(MAX_TRIES // 10):
         centre = (
             float(rng.uniform(ac.wall_margin, room.dims[0] - ac.wall_margin)),
@@ -107,9 +113,9 @@ def _place(cfg: Config, rng, spatial: list[str], split: str, index: int):
             float(min(ac.height.sample(rng), room.dims[2] - 0.1)),
         )
         centre = tuple(round(c, 5) for c in centre)
-        positions = _place_sources(cfg, rng, spatial, room, centre, yaw)
-        if positions is not None:
-            return room, ArrayPose(fmt, centre, yaw, side), positions
+        places = _place_sources(cfg, rng, spatial, moving, room, centre, yaw)
+        if places is not None:
+            return room, ArrayPose(fmt, centre, yaw, side), places
     raise GeometryError(
         f"scene {split}/{index}: could not place {len(spatial)} sources {srcc.distance.to_json()} m from the "
         f"array, {cfg.scene.min_separation}° apart, in a {room.dims} m room; widen sources.distance, "
@@ -117,12 +123,37 @@ def _place(cfg: Config, rng, spatial: list[str], split: str, index: int):
     )
 
 
-def _place_sources(cfg, rng, spatial, room: Room, centre, yaw):
+def _moves(cfg: Config, rng) -> bool:
+    m = cfg.scene.motion
+    return m == "moving" or (m == "mixed" and bool(rng.random() < cfg.scene.moving_fraction))
+
+
+def _frame_centres(cfg: Config) -> np.ndarray:
+    a = cfg.audio
+    return (np.arange(int(round(a.duration / a.label_hop))) + 0.5) * a.label_hop
+
+
+def _separated(az: np.ndarray, placed: list[np.ndarray], sc) -> bool:
+    """Whether azimuth track ``az`` [F] keeps ``sc.min_separation`` from every placed track
+    on at least ``sc.separated_frames`` of the label frames.
+
+    Static sources are separated on every frame or none; a moving source may cross
+    another one (at 40°/s a 10 s walk goes all the way round) for the rest.
+    """
+    for p in placed:
+        d = np.abs((az - p + 180.0) % 360.0 - 180.0)
+        if np.mean(d >= sc.min_separation) < sc.separated_frames - 1e-9:
+            return False
+    return True
+
+
+def _place_sources(cfg, rng, spatial, moving, room: Room, centre, yaw):
     srcc, m = cfg.sources, cfg.sources.wall_margin
     dims = room.dims
-    placed_az: list[float] = []
+    fc = _frame_centres(cfg)
+    placed: list[np.ndarray] = []  # azimuth track of each directional source at the label frames
     out = []
-    for sp in spatial:
+    for sp, mv in zip(spatial, moving):
         if sp == "additive":
             out.append(None)
             continue
@@ -132,20 +163,143 @@ def _place_sources(cfg, rng, spatial, room: Room, centre, yaw):
             dz = h - centre[2]
             if abs(dz) >= d:
                 continue
-            az = float(rng.uniform(-180.0, 180.0))
-            if any(_sep(az, p) < cfg.scene.min_separation for p in placed_az):
-                continue
-            # array frame -> room frame by hand: numpy per point is slower than the maths
             r_h = math.sqrt(d * d - dz * dz)
-            a = math.radians(az + yaw)
-            p = (centre[0] + r_h * math.cos(a), centre[1] + r_h * math.sin(a), h)
-            if all(m <= p[k] <= dims[k] - m for k in range(3)):
-                placed_az.append(az)
-                out.append(p)
+            az = float(rng.uniform(-180.0, 180.0))
+            if mv:
+                place = _arc(cfg, rng, room, centre, yaw, az, r_h, h)
+                if place is None:
+                    continue
+                track = az + place.pop("_dir") * place.pop("_speed") * fc
+            else:
+                # array frame -> room frame by hand: numpy per point is slower than the maths
+                a = math.radians(az + yaw)
+                p = (centre[0] + r_h * math.cos(a), centre[1] + r_h * math.sin(a), h)
+                if not all(m <= p[k] <= dims[k] - m for k in range(3)):
+                    continue
+                place = {"position": tuple(round(v, 6) for v in p)}
+                track = np.full(len(fc), az)
+            if _separated(track, placed, cfg.scene):
+                placed.append(track)
+                out.append(place)
                 break
         else:
             return None
     return out
+
+
+# A moving source's RIRs are computed at least every 100 ms and every 4 degrees.
+KNOT_HOP_S, KNOT_STEP_DEG = 0.1, 4.0
+
+
+def _arc(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, h: float):
+    """An arc around the array at constant distance and height, or None if it leaves the room."""
+    speed = float(cfg.scene.speed.sample(rng))
+    direction = 1 if rng.random() < 0.5 else -1
+    dur = cfg.audio.duration
+    hop = min(KNOT_HOP_S, KNOT_STEP_DEG / speed) if speed > 0 else dur
+    t = np.arange(0.0, dur + hop - 1e-9, hop)
+    a = np.radians(az0 + yaw + direction * speed * t)
+    x, y = centre[0] + r_h * np.cos(a), centre[1] + r_h * np.sin(a)
+    m = cfg.sources.wall_margin
+    if x.min() < m or y.min() < m or x.max() > room.dims[0] - m or y.max() > room.dims[1] - m:
+        return None
+    path = tuple((round(float(ti), 6), round(float(xi), 6), round(float(yi), 6), round(h, 6))
+                 for ti, xi, yi in zip(t, x, y))
+    return {"path": path, "_dir": direction, "_speed": speed}
+
+
+# --- RIR-bank scenes ----------------------------------------------------------------------
+
+
+def _place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, bank_path: str):
+    """A bank room for the split, the bank's array, and each source's walk or point."""
+    from .banks import sample_bank_path, sample_bank_point
+    from .timevarying import interpolate_positions
+
+    bank = open_bank_cached(bank_path)
+    rooms = split_rooms(cfg, split, bank)
+    room_name = rooms[int(rng.integers(len(rooms)))]
+    info = bank.room_info(room_name)
+    side = (info.get("array") or {}).get("side") if bank.format == "mic4" else None
+    array = ArrayPose(bank.format, (0.0, 0.0, 0.0), 0.0, side)
+    fc = _frame_centres(cfg)
+    placed: list[np.ndarray] = []
+    out = []
+    for sp in spatial:
+        if sp == "additive":
+            out.append(None)
+            continue
+        mv = _moves(cfg, rng)
+        for _ in range(MAX_TRIES // 4):
+            if mv:
+                tid, idx, times = sample_bank_path(bank, room_name, rng, cfg.audio.duration,
+                                                   float(cfg.scene.speed.sample(rng)), knot_hop=KNOT_HOP_S)
+            else:
+                tid, i0 = sample_bank_point(bank, room_name, rng)
+                idx, times = np.array([i0]), np.array([0.0])
+            pos = bank.trajectory(room_name, tid).positions[idx]
+            track = interpolate_positions(times, pos, fc)[:, 0]
+            if _separated(track, placed, cfg.scene):
+                placed.append(track)
+                out.append({"bank": {
+                    "room": room_name, "trajectory": tid, "indices": [int(v) for v in idx],
+                    "times": [round(float(v), 6) for v in times],
+                    "positions": [[round(float(v), 4) for v in p] for p in pos]}})
+                break
+        else:
+            raise GeometryError(f"scene {split}/{index}: could not place sources {cfg.scene.min_separation}° apart "
+                                f"in bank room {room_name}; lower scene.min_separation")
+    return None, array, out, {"bank": bank_path, "bank_room": room_name}
+
+
+BUILTIN_DEMO_BANK = "builtin:demo-bank"
+
+
+def resolve_bank(cfg: Config, out_dir: str) -> str | None:
+    """The bank file scenes will use (absolute), checked against the config; None without one.
+
+    ``builtin:demo-bank`` builds a small simulated bank into ``OUT/demo-bank.h5`` once.
+    """
+    path = cfg.room.bank
+    if not path:
+        return None
+    if path == BUILTIN_DEMO_BANK:
+        from .banks.build import build_bank
+
+        path = os.path.join(out_dir, "demo-bank.h5")
+        if not os.path.exists(path):
+            build_bank(path, format=cfg.scene.format, n_rooms=4, seed=0, fs=cfg.audio.fs,
+                       distances=(1.0, 2.0), heights=(-0.3, 0.3), step_deg=10.0)
+    path = os.path.abspath(os.path.expanduser(path))
+    bank = open_bank_cached(path)
+    bank.require_fs(cfg.audio.fs)
+    if bank.format != cfg.scene.format:
+        raise GeometryError(f"{path}: the bank holds {bank.format} RIRs but scene.format is {cfg.scene.format}; "
+                            f"set scene.format = \"{bank.format}\"")
+    for split, sp in cfg.splits.items():
+        if sp.count:
+            split_rooms(cfg, split, bank)  # raises on a room the bank does not have
+    return path
+
+
+_BANKS: dict = {}
+
+
+def open_bank_cached(path: str):
+    """One open bank per process and path (banks read lazily, so this stays small)."""
+    from .banks import open_bank
+
+    if path not in _BANKS:
+        _BANKS[path] = open_bank(path)
+    return _BANKS[path]
+
+
+def split_rooms(cfg: Config, split: str, bank) -> list[str]:
+    """The bank rooms a split may use: ``splits.NAME.rooms`` (names or numbers), else all."""
+    wanted = cfg.splits[split].rooms
+    if not wanted:
+        return list(bank.rooms)
+    return [bank.resolve_room(r) for r in wanted]
 
 
 def _sep(a: float, b: float) -> float:

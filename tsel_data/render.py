@@ -19,6 +19,7 @@ from .audio import active_rms, db, frame_activity, load_clip_cached
 from .geometry import CHANNEL_NAMES, cart_to_sph
 from .recipe import SceneRecipe, array_frame_position_at
 from .store.writer import RenderedScene
+from .timevarying import interpolate_positions, render_moving
 
 PEAK_LIMIT = 0.99
 
@@ -50,8 +51,54 @@ def source_labels(recipe: SceneRecipe, k: int) -> tuple[np.ndarray, np.ndarray, 
     if s.spatial != "directional":
         nan = np.full(f, np.nan, dtype=np.float32)
         return nan, nan.copy(), nan.copy()
+    if s.bank is not None:
+        # the renderer's crossfade weights, applied to the bank positions of its knots
+        p = interpolate_positions(s.bank["times"], s.bank["positions"], frame_times(recipe))
+        return p[:, 0].astype(np.float32), p[:, 1].astype(np.float32), p[:, 2].astype(np.float32)
     az, el, dist = cart_to_sph(array_frame_position_at(recipe, s, frame_times(recipe)))
     return az.astype(np.float32), el.astype(np.float32), dist.astype(np.float32)
+
+
+def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, float | None]:
+    """Each source's image at the array, unscaled: float32 [S, C, T]; and the measured RT60.
+
+    Static simulated sources share one batched RIR computation and convolution; moving
+    and bank sources go through the time-varying renderer (timevarying.py); additive
+    sources are the dry clip on every omni channel (FOA: on W only, since equal gains on
+    Y, Z, X would be a direction).
+    """
+    fs, n, fmt = recipe.fs, recipe.n_samples, recipe.array.format
+    images = np.zeros((len(recipe.sources), len(CHANNEL_NAMES[fmt]), n), dtype=np.float32)
+    rt60 = None
+    static = [k for k, s in enumerate(recipe.sources)
+              if s.spatial == "directional" and s.bank is None and not s.path]
+    if static:
+        pts = np.array([recipe.sources[k].position for k in static], dtype=np.float64)
+        rs = simulate_rirs(recipe.room, recipe.array, pts, fs, method=recipe.rir_method, seed=recipe.seed)
+        rt60 = rs.rt60_measured
+        images[static] = convolve(dry[static], rs.rirs, n)
+    for k, s in enumerate(recipe.sources):
+        if s.spatial == "additive":
+            if fmt == "foa":
+                images[k, 0] = dry[k]
+            else:
+                images[k] = dry[k]
+        elif s.path:
+            knots = np.asarray(s.path, dtype=np.float64)
+            rs = simulate_rirs(recipe.room, recipe.array, knots[:, 1:], fs, method=recipe.rir_method,
+                               seed=recipe.seed + 1 + k)
+            rt60 = rs.rt60_measured if rt60 is None else rt60
+            images[k] = render_moving(dry[k], rs.rirs, knots[:, 0], fs)[:, :n]
+        elif s.bank is not None:
+            from .plan import open_bank_cached
+
+            b = s.bank
+            rirs = open_bank_cached(recipe.extra["bank"]).read(b["room"], b["trajectory"], b["indices"])
+            if len(b["indices"]) == 1:
+                images[k] = convolve(dry[k:k + 1], rirs, n)[0]
+            else:
+                images[k] = render_moving(dry[k], rirs, np.asarray(b["times"]), fs)[:, :n]
+    return images, rt60
 
 
 def render_scene(recipe: SceneRecipe) -> RenderedScene:
@@ -59,24 +106,8 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
     fmt = recipe.array.format
     dry = np.stack([load_clip_cached(s.audio, fs, recipe.duration, s.offset) for s in recipe.sources])
     active = np.stack([frame_activity(x, fs, hop, nf, recipe.activity_threshold_db) for x in dry])
-    n_ch = len(CHANNEL_NAMES[fmt])
 
-    images = np.zeros((len(recipe.sources), n_ch, n), dtype=np.float32)
-    directional = [k for k, s in enumerate(recipe.sources) if s.spatial == "directional"]
-    rt60_measured = None
-    if directional:
-        pts = np.array([recipe.sources[k].position for k in directional], dtype=np.float64)
-        rs = simulate_rirs(recipe.room, recipe.array, pts, fs, method=recipe.rir_method, seed=recipe.seed)
-        rt60_measured = rs.rt60_measured
-        images[directional] = convolve(dry[directional], rs.rirs, n)
-    for k, s in enumerate(recipe.sources):
-        if s.spatial == "additive":
-            # no direction: the same signal on every omni capsule; for FOA only the
-            # omnidirectional W channel, since equal gains on Y, Z, X would be a direction.
-            if fmt == "foa":
-                images[k, 0] = dry[k]
-            else:
-                images[k] = dry[k]
+    images, rt60_measured = spatial_images(recipe, dry)
 
     level_ch = slice(0, 1) if fmt == "foa" else slice(None)
     levels = np.array([active_rms(images[k, level_ch], active[k], fs, hop) for k in range(len(images))])
@@ -101,14 +132,15 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
         "scenario": recipe.scenario, "query": recipe.query,
         "motion": "moving" if any(s.moving for s in recipe.sources) else "static",
         "rir_method": recipe.rir_method,
-        "room": None if recipe.room is None else {
-            "dims": list(recipe.room.dims), "rt60": recipe.room.rt60, "rt60_measured": rt60_measured},
+        "room": _room_record(recipe, rt60_measured),
         "array": {"format": fmt, "centre": list(recipe.array.centre), "yaw": recipe.array.yaw,
                   "side": recipe.array.side, "mic_positions": np.round(mics.astype(np.float64), 6).tolist()},
         "sources": [
             {"role": s.role, "clip_id": s.clip_id, "audio": s.audio, "captions": list(s.captions),
              "spatial": s.spatial, "moving": s.moving,
              "position": None if s.position is None else list(s.position),
+             "path": None if not s.path else [list(kn) for kn in s.path],
+             "bank": s.bank,
              "azimuth": _round(az[k]), "elevation": _round(el[k]), "distance": _round(dist[k], 4),
              "active": active[k].tolist(), "tir_db": s.tir_db,
              "gain_db": round(db(gains[k] * norm), 3) if gains[k] > 0 else None,
@@ -119,6 +151,16 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
                    "normalisation_db": round(db(norm), 3)},
     }
     return RenderedScene(recipe.scene_id, recipe.query, mix, az, el, dist, active, mics, record)
+
+
+def _room_record(recipe: SceneRecipe, rt60_measured) -> dict:
+    if recipe.room is not None:
+        return {"dims": list(recipe.room.dims), "rt60": recipe.room.rt60, "rt60_measured": rt60_measured}
+    from .plan import open_bank_cached
+
+    info = open_bank_cached(recipe.extra["bank"]).room_info(recipe.extra["bank_room"])
+    return {"name": recipe.extra["bank_room"], "bank": recipe.extra["bank"], "dims": info.get("dims"),
+            "rt60": info.get("rt60"), "rt60_measured": None}
 
 
 def _round(a: np.ndarray, nd: int = 3) -> list:

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..geometry import CHANNEL_NAMES
 from . import Bank, BankError, Trajectory, check_format
-from ._h5 import H5Pool
+from ._h5 import H5Pool, read_rows
 
 VERSION = 1
 
@@ -87,10 +87,7 @@ class NativeBank(Bank):
 
     def _read(self, room, traj, rows):
         ds = self._h5.get(self.path)["rooms"][room]["rirs"]
-        rows = rows + self._meta[room]["offset"][str(traj.id)]
-        if rows[-1] - rows[0] == len(rows) - 1:
-            return ds[int(rows[0]) : int(rows[-1]) + 1]
-        return ds[rows.tolist()]
+        return read_rows(ds, rows + self._meta[room]["offset"][str(traj.id)])
 
     def close(self):
         self._h5.close()

@@ -18,11 +18,12 @@ Format: ``format=`` if given, else ``ListenerShortName`` (``foa`` / ``mic``), el
 file-name suffix; ``mic`` means the DCASE tetrahedral format (``tetra``).
 
 Trajectories: SOFA has no trajectory grouping. With ``grouping="auto"`` the file order
-is used when it is a path (runs of neighbouring positions, split where a step is much
-longer than the typical one or changes height or horizontal distance by more than
-``ring_tol`` — SpatialScaper stores each TAU trajectory and height in path order); otherwise positions are grouped into rings of equal height and equal
-horizontal distance (gaps over ``ring_tol`` m split them) and each ring is sorted by
-azimuth. ``grouping="rings"`` or ``"runs"`` forces one. Ids are ``"g{i}"``.
+is used when it is a path: runs of neighbouring positions, split where a step is over
+4x the median step or changes height or horizontal distance by more than ``ring_tol``
+m, kept when they average at least 10 positions (SpatialScaper stores each TAU
+trajectory and height in path order). Otherwise positions are grouped into rings of
+equal height and equal horizontal distance (gaps over ``ring_tol`` m split them), each
+sorted by azimuth. ``grouping="rings"`` or ``"runs"`` forces one. Ids are ``"g{i}"``.
 """
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ import numpy as np
 
 from ..geometry import CHANNEL_NAMES, cart_to_sph, sph_to_cart
 from . import Bank, BankError, Trajectory, _attr_str, check_format
-from ._h5 import H5Pool
+from ._h5 import H5Pool, read_rows
 from .paths import angular_steps
 from .tau import TAU_ROOM_NUMBERS
 
@@ -151,7 +152,7 @@ class SofaBank(Bank):
         rows_in_file = dict((t.id, m) for t, m in r["trajectories"])[traj.id][rows]
         order = np.argsort(rows_in_file)
         ds = self._h5.get(r["path"])["Data.IR"]
-        data = np.asarray(ds[np.sort(rows_in_file).tolist()], dtype=np.float32)
+        data = read_rows(ds, np.sort(rows_in_file))
         out = np.empty_like(data)
         out[order] = data
         return out

@@ -42,7 +42,7 @@ import numpy as np
 
 from ..geometry import CHANNEL_NAMES, cart_to_sph
 from . import Bank, BankError, Trajectory, check_format
-from ._h5 import H5Pool
+from ._h5 import H5Pool, read_rows
 
 TAU_ROOM_NUMBERS = {
     "bomb_shelter": 1, "gym": 2, "pb132": 3, "pc226": 4, "sa203": 5,
@@ -186,11 +186,10 @@ class TauBank(Bank):
     def _read(self, room, traj, rows):
         ds = self._dataset(room, traj)
         n = len(traj)
-        sel = _selection(rows)
         if ds.shape[0] == n:  # [nDOA, C, L]: MATLAB's reversed [L × C × nDOA]
-            data = ds[sel]
+            data = read_rows(ds, rows)
         elif ds.shape[-1] == n:  # written without reversal: [L, C, nDOA]
-            data = np.moveaxis(ds[..., sel], -1, 0).transpose(0, 2, 1)
+            data = np.moveaxis(ds[..., _selection(rows)], -1, 0).transpose(0, 2, 1)
         else:
             raise BankError(
                 f"{self._rooms[room]['path']}: {room}/{traj.id} holds RIRs of shape {ds.shape}, "

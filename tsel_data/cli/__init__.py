@@ -9,6 +9,7 @@ import sys
 import click
 
 from ..errors import TselError
+from .bank import bank
 from .corpus import corpus
 from .dataset import finalize_cmd, generate_cmd, plan_cmd, render_cmd
 from .presets import presets_cmd
@@ -20,7 +21,7 @@ def cli():
     """Build datasets for text-queried target sound event localization."""
 
 
-for _cmd in (generate_cmd, plan_cmd, render_cmd, finalize_cmd, corpus, presets_cmd):
+for _cmd in (generate_cmd, plan_cmd, render_cmd, finalize_cmd, corpus, bank, presets_cmd):
     cli.add_command(_cmd)
 
 

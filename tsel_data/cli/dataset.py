@@ -15,6 +15,7 @@ def _config_options(f):
         click.option("--corpus-dir", type=click.Path(file_okay=False), help="Folder with the manifests and audio."),
         click.option("--split", "splits", multiple=True, metavar="NAME=COUNT", help="Scenes in a split (repeatable)."),
         click.option("--seed", type=int, help="Dataset seed."),
+        click.option("--bank", type=click.Path(), help="RIR bank: a TAU-SRIR DB folder, SOFA file(s) or a tsel bank."),
         click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
                      help="Override a config key, e.g. --set room.rt60='[\"uniform\", 0.3, 0.6]'."),
     ]
@@ -23,7 +24,7 @@ def _config_options(f):
     return f
 
 
-def _load(preset, config_path, corpus_dir, splits, seed, overrides):
+def _load(preset, config_path, corpus_dir, splits, seed, bank, overrides):
     from ..config import load_config
 
     if not preset and not config_path:
@@ -35,7 +36,7 @@ def _load(preset, config_path, corpus_dir, splits, seed, overrides):
             raise TselError(f"--split {s!r}: expected NAME=COUNT, e.g. --split train=100")
         counts[name] = int(count)
     return load_config(preset=preset, path=config_path, overrides=list(overrides), corpus_dir=corpus_dir,
-                       seed=seed, splits=counts)
+                       seed=seed, splits=counts, bank=bank)
 
 
 def _workers(n):
@@ -57,12 +58,12 @@ def _executor_options(f):
 @click.option("--resume", is_flag=True, help="Continue an interrupted run in --out.")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 @_executor_options
-def generate_cmd(preset, config_path, corpus_dir, splits, seed, overrides, out_dir, workers, resume, quiet,
+def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, resume, quiet,
                  executor, scheduler):
     """Plan, render and finalize a dataset in one go."""
     from ..generate import generate
 
-    cfg = _load(preset, config_path, corpus_dir, splits, seed, overrides)
+    cfg = _load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
     s = generate(cfg, out_dir, workers=_workers(workers), resume=resume, progress=not quiet, executor=executor,
                  scheduler=scheduler)
     total = sum(s["splits"].values())
@@ -78,11 +79,11 @@ def generate_cmd(preset, config_path, corpus_dir, splits, seed, overrides, out_d
 @_config_options
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--workers", type=int, default=0, help="Processes for checking clips.")
-def plan_cmd(preset, config_path, corpus_dir, splits, seed, overrides, out_dir, workers):
+def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers):
     """Check the corpus and write scene recipes only (plan/{split}.jsonl)."""
     from ..generate import plan_dataset, shard_tasks, load_plan
 
-    cfg = _load(preset, config_path, corpus_dir, splits, seed, overrides)
+    cfg = _load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
     counts = plan_dataset(cfg, out_dir, workers=_workers(workers))
     n_shards = len(shard_tasks(*load_plan(out_dir)))
     click.echo(f"planned " + ", ".join(f"{k} {v}" for k, v in counts.items()) + f" scenes in {n_shards} shards "

@@ -7,6 +7,8 @@ a resumed or re-run job writes identical files.
 """
 from __future__ import annotations
 
+import errno
+import glob
 import hashlib
 import json
 import math
@@ -15,6 +17,8 @@ from dataclasses import dataclass, field
 
 import h5py
 import numpy as np
+
+from ..errors import DatasetError
 
 FORMAT_VERSION = 1
 LABEL_KEYS = ("azimuth", "elevation", "distance")
@@ -50,13 +54,20 @@ def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene
     """Write one shard atomically; returns its entry for ``dataset.json``."""
     h5_rel, json_rel = shard_names(split, shard)
     h5_path, json_path = os.path.join(out_dir, h5_rel), os.path.join(out_dir, json_rel)
-    os.makedirs(os.path.dirname(h5_path), exist_ok=True)
     n_src = max(s.azimuth.shape[0] for s in scenes)
 
     doc = {"format_version": FORMAT_VERSION, "split": split, "shard": shard, **attrs,
            "scenes": [s.record for s in scenes]}
-    _atomic_write(json_path, (json.dumps(_json_safe(doc), ensure_ascii=False, indent=1) + "\n").encode("utf-8"))
-    _atomic_write_h5(h5_path, scenes, n_src, {"split": split, "shard": shard, **attrs})
+    what = json_rel
+    try:
+        os.makedirs(os.path.dirname(h5_path), exist_ok=True)
+        remove_stale_tmp(json_path)
+        remove_stale_tmp(h5_path)
+        _atomic_write(json_path, (json.dumps(_json_safe(doc), ensure_ascii=False, indent=1) + "\n").encode("utf-8"))
+        what = h5_rel
+        _atomic_write_h5(h5_path, scenes, n_src, {"split": split, "shard": shard, **attrs})
+    except OSError as e:
+        raise write_error(what, e, out_dir) from None
     return {
         "file": h5_rel,
         "json": json_rel,
@@ -74,6 +85,7 @@ def _atomic_write(path: str, data: bytes) -> None:
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
+        _fsync_dir(os.path.dirname(path))
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
@@ -105,10 +117,90 @@ def _atomic_write_h5(path: str, scenes: list[RenderedScene], n_src: int, attrs: 
             for k, v in sorted(attrs.items()):
                 h.attrs[k] = _attr(v)
             h.attrs["frames"] = f_
+        _fsync_file(tmp)
         os.replace(tmp, path)
+        _fsync_dir(os.path.dirname(path))
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
+
+
+def _fsync_file(path: str) -> None:
+    """Flush a closed file's data to disk, so a rename never exposes unwritten blocks."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_dir(path: str) -> None:
+    """Make a rename durable (POSIX); silently skipped where directories cannot be opened."""
+    try:
+        fd = os.open(path or ".", os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def remove_stale_tmp(path: str) -> list[str]:
+    """Delete ``path.tmp-PID`` files left by killed writers (PID not alive here); returns them.
+
+    A killed run cannot clean up after itself; the next writer of the same file does.
+    Files of live processes are kept (another job may be writing the same shard).
+    """
+    removed = []
+    for tmp in glob.glob(glob.escape(path) + ".tmp-*"):
+        pid = tmp.rsplit(".tmp-", 1)[1]
+        if pid.isdigit() and int(pid) != os.getpid() and _alive(int(pid)):
+            continue
+        try:
+            os.remove(tmp)
+            removed.append(tmp)
+        except FileNotFoundError:
+            pass
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+_NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
+_NOT_WRITABLE = (errno.EACCES, errno.EPERM, errno.EROFS)
+
+
+def write_error(what: str, e: OSError, out_dir: str = "") -> DatasetError:
+    """A one-line DatasetError for a failed write (full disk, unwritable folder, ...).
+
+    h5py reports HDF5 failures as OSError without errno; the reason is then read from
+    the message.
+    """
+    text = str(e)
+    where = out_dir or "the output folder"
+    if e.errno in _NO_SPACE or "No space left" in text or "Disk quota" in text:
+        why = (f"no space left on the device; free space (or move {where} elsewhere) and rerun with --resume: "
+               f"finished shards are kept")
+        reason = "disk full"
+    elif e.errno in _NOT_WRITABLE or any(m in text for m in ("Permission denied", "Operation not permitted",
+                                                               "Read-only file system")):
+        why = f"{where} is not writable; fix its permissions or choose another --out"
+        reason = e.strerror or "not writable"
+    else:
+        why = "check the output folder and rerun with --resume"
+        reason = e.strerror or (text.splitlines()[0] if text else type(e).__name__)
+    return DatasetError(f"cannot write {what}: {reason}; {why}")
 
 
 def _stack_padded(arrays, n_src, fill, dtype) -> np.ndarray:

@@ -1,0 +1,111 @@
+"""Moving sources (simulated arcs and RIR-bank walks) and room-based splits, end to end."""
+import json
+import os
+
+import numpy as np
+import pytest
+
+from tsel_data.catalog import build_catalog
+from tsel_data.generate import generate, plan_dataset
+from tsel_data.geometry import azimuth_difference
+from tsel_data.plan import CatalogView, plan_split, resolve_bank
+from tsel_data.recipe import SceneRecipe
+from tsel_data.render import render_scene, source_labels
+
+
+def test_simulated_arcs_follow_their_speed(small_config, tmp_path):
+    cfg = small_config('scene.motion="moving"', 'scene.scenario="two-directional"', "scene.speed=30.0",
+                       "scene.separated_frames=0.5", 'room.length=["uniform", 12.0, 15.0]',
+                       'room.width=["uniform", 12.0, 15.0]', splits={"train": 4})
+    cat = build_catalog(cfg, str(tmp_path))
+    for r in plan_split(cfg, "train", CatalogView(cat.clips["train"])):
+        for k, s in enumerate(r.sources):
+            assert s.moving and s.path and s.position is None
+            knots = np.asarray(s.path)
+            assert knots[0, 0] <= 0 and knots[-1, 0] >= r.duration  # covers the whole scene
+            assert np.all(np.diff(knots[:, 0]) <= 0.1 + 1e-9)        # an RIR at least every 100 ms
+            az, el, dist = source_labels(r, k)
+            step = np.diff(np.unwrap(np.radians(az)))
+            # 30 deg/s at 0.1 s frames: 3 degrees per frame, one direction
+            np.testing.assert_allclose(np.abs(np.degrees(step)), 3.0, atol=1e-3)
+            assert np.ptp(dist) < 1e-4 and np.ptp(el) < 1e-3          # an arc around the array
+        assert SceneRecipe.from_json(r.to_json()) == r
+
+
+def test_moving_scene_renders_with_full_length_and_finite_audio(small_config, tmp_path):
+    cfg = small_config('scene.motion="mixed"', "scene.moving_fraction=1.0", 'scene.scenario="two-directional"',
+                       "scene.speed=10.0", splits={"train": 1})
+    cat = build_catalog(cfg, str(tmp_path))
+    r = plan_split(cfg, "train", CatalogView(cat.clips["train"]))[0]
+    scene = render_scene(r)
+    assert scene.audio.shape == (4, r.n_samples) and np.all(np.isfinite(scene.audio))
+    assert scene.record["motion"] == "moving"
+    t, i = scene.record["sources"]
+    assert t["level_dbfs"] - i["level_dbfs"] == pytest.approx(i["tir_db"], abs=0.01)
+
+
+@pytest.fixture(scope="module")
+def bank_dataset(tmp_path_factory, demo_corpus):
+    from tsel_data.config import load_config
+
+    out = str(tmp_path_factory.mktemp("bank") / "out")
+    cfg = load_config(preset="demo-moving", corpus_dir=demo_corpus,
+                      overrides=["audio.duration=2.0", "output.shard_size=4"],
+                      splits={"train": 8, "val": 3, "test": 3})
+    generate(cfg, out, workers=1, progress=False)
+    return cfg, out
+
+
+def test_bank_scenes_stay_in_their_split_rooms(bank_dataset):
+    cfg, out = bank_dataset
+    for split, rooms in (("train", {"sim01", "sim02"}), ("val", {"sim03"}), ("test", {"sim04"})):
+        recipes = [SceneRecipe.from_json(x) for x in open(os.path.join(out, "plan", f"{split}.jsonl"))]
+        assert {r.extra["bank_room"] for r in recipes} <= rooms
+        for r in recipes:
+            assert all(s.bank["room"] in rooms for s in r.sources if s.bank)
+
+
+def test_bank_labels_follow_the_bank_positions(bank_dataset):
+    cfg, out = bank_dataset
+    js = json.load(open(os.path.join(out, "train", "shard-00000.json")))
+    moving = 0
+    for scene in js["scenes"]:
+        assert scene["array"]["format"] == "foa"
+        for src in scene["sources"]:
+            b = src["bank"]
+            pos = np.asarray(b["positions"])
+            times = np.asarray(b["times"])
+            az = np.asarray(src["azimuth"], dtype=float)
+            if len(times) == 1:
+                np.testing.assert_allclose(azimuth_difference(az, pos[0, 0]), 0, atol=1e-3)
+                continue
+            moving += 1
+            # at a knot time that falls on a frame centre the label is that knot's position
+            centres = (np.arange(len(az)) + 0.5) * 0.1
+            for tk, pk in zip(times, pos):
+                hit = np.nonzero(np.abs(centres - tk) < 1e-6)[0]
+                if hit.size:
+                    assert azimuth_difference(az[hit[0]], pk[0]) < 1e-2
+            # labels move between consecutive knots by no more than the knots do
+            assert np.all(azimuth_difference(az[1:], az[:-1]) <= np.max(azimuth_difference(pos[1:, 0], pos[:-1, 0])) + 1e-3)
+    assert moving > 0
+
+
+def test_tau_db_with_room_numbers(tmp_path, demo_corpus):
+    from bankfixtures import make_tau_db
+    from tsel_data.config import load_config
+    from tsel_data.errors import TselError
+
+    make_tau_db(tmp_path / "TAU", rooms=(("bomb_shelter", 1), ("gym", 2), ("pb132", 8), ("pc226", 9)), L=64)
+    cfg = load_config(preset="paper-measured", corpus_dir=demo_corpus, bank=str(tmp_path / "TAU"),
+                      overrides=["audio.duration=1.0", 'splits.train.rooms=[1, 2]'],
+                      splits={"train": 6, "val": 2, "test": 2})
+    out = str(tmp_path / "out")
+    plan_dataset(cfg, out)
+    rooms = {s: {SceneRecipe.from_json(x).extra["bank_room"] for x in open(os.path.join(out, "plan", f"{s}.jsonl"))}
+             for s in ("train", "val", "test")}
+    assert rooms["train"] <= {"bomb_shelter", "gym"} and rooms["val"] == {"pb132"} and rooms["test"] == {"pc226"}
+    bad = load_config(preset="paper-measured", corpus_dir=demo_corpus, bank=str(tmp_path / "TAU"),
+                      splits={"train": 1, "val": 1, "test": 1})
+    with pytest.raises(TselError, match="no room 3"):
+        resolve_bank(bad, str(tmp_path / "x"))

@@ -1,0 +1,54 @@
+"""``tsel check``: validate a config and its inputs, or verify a written dataset."""
+from __future__ import annotations
+
+import json
+
+import click
+
+from ..errors import TselError
+from .dataset import _config_options, _load, _workers
+
+SHOW = 20  # problems printed per kind; the rest are counted (--json lists them all)
+
+
+@click.command("check")
+@click.argument("dataset_dir", required=False, type=click.Path(file_okay=False))
+@_config_options
+@click.option("--out", "out_dir", type=click.Path(file_okay=False),
+              help="With a config: the output folder a run would use (checked for space, writability, an old plan).")
+@click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
+@click.option("--no-plan", is_flag=True, help="With a config: skip sampling every scene in memory.")
+@click.option("--no-audio", is_flag=True, help="With DIR: skip checking every audio sample is finite.")
+@click.option("--json", "as_json", is_flag=True, help="Print the full report as JSON.")
+def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, **config_opts):
+    """Check a config and everything it reads before rendering (`tsel check --preset/--config ...`),
+    or verify a finished dataset (`tsel check DIR`: shards, sha256, HDF5 vs JSON, counts).
+
+    Exits 0 when nothing stops a run (warnings, e.g. skipped bad clips, are printed),
+    2 when something does; every problem is one line naming the file and row.
+    """
+    from ..check import check_config, check_dataset
+
+    if dataset_dir and (config_opts.get("preset") or config_opts.get("config_path")):
+        raise TselError("give either a dataset folder or --preset/--config, not both")
+    if dataset_dir:
+        rep = check_dataset(dataset_dir, workers=_workers(workers), audio=not no_audio)
+    else:
+        cfg = _load(**config_opts)  # the same options, loading and messages as `tsel generate`
+        rep = check_config(cfg, out_dir=out_dir, workers=_workers(workers), plan=not no_plan)
+    if as_json:
+        click.echo(json.dumps(rep.to_dict(), indent=1, ensure_ascii=False))
+    else:
+        for line in rep.summary_lines():
+            click.echo(line)
+        _print("warning", rep.warnings)
+        _print("error", rep.messages())
+    if not rep.ok:
+        click.get_current_context().exit(2)
+
+
+def _print(kind: str, lines: list[str]) -> None:
+    for line in lines[:SHOW]:
+        click.echo(f"{kind}: {line}", err=True)
+    if len(lines) > SHOW:
+        click.echo(f"{kind}: ... and {len(lines) - SHOW} more (--json lists all)", err=True)
