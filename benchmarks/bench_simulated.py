@@ -32,6 +32,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXP
 import argparse  # noqa: E402
 import multiprocessing as mp  # noqa: E402
 import resource  # noqa: E402
+import shutil  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -198,6 +199,64 @@ def summarise(ratios) -> str:
             f"within ±10%: {np.mean(np.abs(a - 1) <= 0.10) * 100:5.1f}%")
 
 
+def speed_table(opts, clip_dir: str, out_dir: str) -> None:
+    print("\n== end to end (recipe -> shard on disk), per core ==")
+    print("(other processes share the cores: the load average before each row is shown)")
+    print(f"{'rooms':10s} {'format':6s} {'method':16s} {'scenes':>6s} {'s/scene':>8s} {'scenes/s':>9s} "
+          f"{'RIRs ms':>8s} {'peak RSS':>9s} {'load':>5s}  vs pyroomacoustics")
+    for family in ("paper", "realistic"):
+        base = None
+        rows = [("mic4", "pyroomacoustics", opts.pra_scenes), ("mic4", "hybrid", opts.scenes),
+                ("mic4", "ism", opts.ism_scenes), ("foa", "hybrid", opts.scenes), ("foa", "ism", opts.ism_scenes)]
+        for fmt, method, n in rows:
+            if n <= 0:
+                continue
+            renderer = "pra" if method == "pyroomacoustics" else "ours"
+            recs = scenes(n, family, fmt, method, clip_dir, seed=opts.seed)
+            load = os.getloadavg()[0]
+            (res,) = in_worker(run_scenes, [(recs, renderer, out_dir)])
+            per = res["seconds"] / res["n"]
+            if method == "pyroomacoustics":
+                base = per
+                note = "(default path: inverse_sabine + room.simulate)"
+            else:
+                note = f"{base / per:6.1f}x" if (base and fmt == "mic4") else ""
+            print(f"{family:10s} {fmt:6s} {method:16s} {res['n']:6d} {per:8.3f} {1 / per:9.2f} "
+                  f"{res['rir_ms']:8.1f} {res['rss_mib']:6.0f}MiB {load:5.2f}  {note}")
+
+
+def worker_scaling(opts, clip_dir: str, out_dir: str) -> None:
+    print("\n== 2 workers vs 1 (hybrid, mic4, paper rooms) ==")
+    n2 = max(2 * opts.scenes, 20)
+    recs = scenes(n2, "paper", "mic4", "hybrid", clip_dir, seed=opts.seed + 1)
+    half = n2 // 2
+    targets = [("shards on disk", out_dir)]
+    if os.path.isdir("/dev/shm"):
+        # the same in memory: separates the CPU scaling from the disk's write bandwidth
+        targets.append(("shards in /dev/shm", tempfile.mkdtemp(prefix="tsel-bench-", dir="/dev/shm")))
+    for label, target in targets:
+        load = os.getloadavg()[0]
+        (r1,) = in_worker(run_scenes, [(recs, "ours", target)], processes=1)
+        r2 = in_worker(run_scenes, [(recs[:half], "ours", target), (recs[half:], "ours", target)], processes=2)
+        busy2 = max(r["seconds"] for r in r2)
+        print(f"{label:20s} {n2} scenes: 1 worker {n2 / r1['seconds']:6.2f} scenes/s, 2 workers "
+              f"{n2 / busy2:6.2f} scenes/s: speed-up {r1['seconds'] / busy2:.2f}x   (load before {load:.2f})")
+        if target != out_dir:
+            shutil.rmtree(target, ignore_errors=True)
+
+
+def t30_table(opts) -> None:
+    print("\n== T30 / requested RT60 (first RIR, omni; Schroeder -5..-35 dB) ==")
+    for family in ("paper", "realistic"):
+        for method, n in (("hybrid", opts.t30_rooms), ("ism", opts.t30_rooms_slow),
+                          ("pyroomacoustics", opts.t30_rooms_slow)):
+            if n <= 0:
+                continue
+            chunks = [(family, method, n // 2, opts.seed), (family, method, n - n // 2, opts.seed + 1000)]
+            ratios = sum(in_worker(t30_ratios, chunks, processes=2), [])
+            print(f"{family:10s} {method:16s} {summarise(ratios)}")
+
+
 # --- main ------------------------------------------------------------------------------------
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -207,6 +266,7 @@ def main() -> None:
     ap.add_argument("--t30-rooms", type=int, default=100, help="rooms per family for the hybrid T30 distribution")
     ap.add_argument("--t30-rooms-slow", type=int, default=40, help="rooms per family for ism / pyroomacoustics T30")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--sections", default="speed,workers,t30", help="comma-separated subset of speed,workers,t30")
     opts = ap.parse_args()
 
     print(f"bench_simulated: {DURATION:.0f} s scenes at {FS} Hz, 2 static sources, 1 thread per worker, "
@@ -220,56 +280,13 @@ def main() -> None:
         # warm-up (imports, FFT plans) so the first configuration is not penalised
         in_worker(run_scenes, [(scenes(1, "paper", "mic4", "hybrid", clip_dir, seed=99), "ours", out_dir)])
 
-        print("\n== end to end (recipe -> shard on disk), per core ==")
-        print("(other processes share the cores: the load average before each row is shown)")
-        print(f"{'rooms':10s} {'format':6s} {'method':16s} {'scenes':>6s} {'s/scene':>8s} {'scenes/s':>9s} "
-              f"{'RIRs ms':>8s} {'peak RSS':>9s} {'load':>5s}  vs pyroomacoustics")
-        for family in ("paper", "realistic"):
-            base = None
-            rows = [("mic4", "pyroomacoustics", opts.pra_scenes), ("mic4", "hybrid", opts.scenes),
-                    ("mic4", "ism", opts.ism_scenes), ("foa", "hybrid", opts.scenes), ("foa", "ism", opts.ism_scenes)]
-            for fmt, method, n in rows:
-                if n <= 0:
-                    continue
-                renderer = "pra" if method == "pyroomacoustics" else "ours"
-                recs = scenes(n, family, fmt, method, clip_dir, seed=opts.seed)
-                load = os.getloadavg()[0]
-                (res,) = in_worker(run_scenes, [(recs, renderer, out_dir)])
-                per = res["seconds"] / res["n"]
-                if method == "pyroomacoustics":
-                    base = per
-                    note = "(default path: inverse_sabine + room.simulate)"
-                else:
-                    note = f"{base / per:6.1f}x" if (base and fmt == "mic4") else ""
-                print(f"{family:10s} {fmt:6s} {method:16s} {res['n']:6d} {per:8.3f} {1 / per:9.2f} "
-                      f"{res['rir_ms']:8.1f} {res['rss_mib']:6.0f}MiB {load:5.2f}  {note}")
-
-        print("\n== 2 workers vs 1 (hybrid, mic4, paper rooms) ==")
-        n2 = max(2 * opts.scenes, 20)
-        recs = scenes(n2, "paper", "mic4", "hybrid", clip_dir, seed=opts.seed + 1)
-        half = n2 // 2
-        print(f"load average before: {os.getloadavg()[0]:.2f}")
-        t0 = time.perf_counter()
-        (r1,) = in_worker(run_scenes, [(recs, "ours", out_dir)], processes=1)
-        wall1 = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        r2 = in_worker(run_scenes, [(recs[:half], "ours", out_dir), (recs[half:], "ours", out_dir)], processes=2)
-        wall2 = time.perf_counter() - t0
-        busy2 = max(r["seconds"] for r in r2)
-        print(f"{n2} scenes, rendering loop: 1 worker {n2 / r1['seconds']:.2f} scenes/s, 2 workers "
-              f"{n2 / busy2:.2f} scenes/s: speed-up {r1['seconds'] / busy2:.2f}x")
-        print(f"{'':{len(str(n2))}s}         wall clock incl. process start and warm-up: {wall1:.2f} s vs "
-              f"{wall2:.2f} s: {wall1 / wall2:.2f}x")
-
-        print("\n== T30 / requested RT60 (first RIR, omni; Schroeder -5..-35 dB) ==")
-        for family in ("paper", "realistic"):
-            for method, n in (("hybrid", opts.t30_rooms), ("ism", opts.t30_rooms_slow),
-                              ("pyroomacoustics", opts.t30_rooms_slow)):
-                if n <= 0:
-                    continue
-                chunks = [(family, method, n // 2, opts.seed), (family, method, n - n // 2, opts.seed + 1000)]
-                ratios = sum(in_worker(t30_ratios, chunks, processes=2), [])
-                print(f"{family:10s} {method:16s} {summarise(ratios)}")
+        sections = set(opts.sections.split(","))
+        if "speed" in sections:
+            speed_table(opts, clip_dir, out_dir)
+        if "workers" in sections:
+            worker_scaling(opts, clip_dir, out_dir)
+        if "t30" in sections:
+            t30_table(opts)
 
 
 if __name__ == "__main__":

@@ -106,7 +106,7 @@ def test_workers_resume_and_reruns_give_identical_files(dataset, tmp_path):
     with pytest.raises(Exception, match="not rendered"):
         finalize(two)
     generate(cfg, two, workers=1, resume=True, progress=False)
-    os.remove(os.path.join(two, "train", "shard-00001.h5.tmp-999"))
+    assert not os.path.exists(os.path.join(two, "train", "shard-00001.h5.tmp-999"))  # leftovers cleaned
     assert _files(two) == ref
 
 

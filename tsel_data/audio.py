@@ -13,7 +13,6 @@ from functools import lru_cache
 
 import numpy as np
 import soundfile as sf
-from scipy.signal import resample_poly
 
 from .errors import AudioError
 
@@ -40,6 +39,8 @@ def load_clip(path: str, fs: int, duration: float, offset: float = 0.0) -> np.nd
                          f"(corpus.check = \"full\" finds such clips before rendering)")
     x = x.mean(axis=1) if x.shape[1] > 1 else x[:, 0]
     if sr != fs:
+        from scipy.signal import resample_poly  # imported here: scipy.signal costs ~0.6 s at CLI start-up
+
         g = math.gcd(int(sr), int(fs))
         x = resample_poly(x, fs // g, sr // g).astype(np.float32)
     return fit_length(x, n_out)

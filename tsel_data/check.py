@@ -31,6 +31,7 @@ import numpy as np
 from .config import Config, validate_config
 from .errors import ConfigError, DatasetError, GeometryError, ManifestError, TselError
 
+MAX_NUMBER = 1e9  # check_raw_config: larger config numbers are typos (seeds excepted)
 # JSON labels are rounded to 3 decimals (distance 4): HDF5 and JSON agree within this
 LABEL_ATOL = 2e-3
 
@@ -97,7 +98,7 @@ class CheckReport:
             out.append(f"  output about {f['estimated_bytes'] / 1e9:.2f} GB"
                        + (f" ({free / 1e9:.1f} GB free)" if free is not None else ""))
         if "bytes" in f:
-            out.append(f"  {f['bytes'] / 1e6:.1f} MB verified")
+            out.append(f"  {f['bytes'] / 1e6:.1f} MB checked")
         return out
 
 
@@ -195,7 +196,8 @@ def geometry_problems(cfg: Config) -> list[TselError]:
 def bank_problems(cfg: Config) -> list[TselError]:
     """Problems with ``room.bank``: missing or unreadable bank, array format or sample
     rate differing from the config, split rooms the bank lacks, rooms without
-    trajectories, missing or non-finite positions. Returns TselErrors (BankError)."""
+    trajectories, missing or non-finite positions, mic4 rooms without the array's side
+    length. Returns TselErrors (BankError)."""
     try:
         from .banks import BankError, open_bank
     except ImportError:  # pragma: no cover - banks ship with the package
@@ -253,6 +255,12 @@ def _room_positions_problem(bank, room: str):
     if not trajs or sum(len(t) for t in trajs) == 0:
         return BankError(f"{bank.source}: room {room} has no RIR positions (no trajectories); re-import the room or "
                          f"remove it from the split's rooms")
+    if bank.format == "mic4":
+        side = (bank.room_info(room).get("array") or {}).get("side")
+        if not isinstance(side, (int, float)) or not side > 0:
+            # a square array's mic positions (labels' mic_positions) need its side length
+            return BankError(f"{bank.source}: room {room} is a mic4 room without the array's side length (room info "
+                             f"array.side); rebuild it with `tsel bank build` or add the side to its info")
     for t in trajs:
         p = np.asarray(t.positions, dtype=np.float64)
         if p.ndim != 2 or p.shape[1] != 3 or len(p) == 0:
@@ -588,3 +596,45 @@ def _s(x) -> str:
     if isinstance(x, np.ndarray) and x.shape == ():
         return _s(x.item())
     return x if x is None else str(x)
+
+
+# --- raw config structure (wired in front of config.parse_config) ----------------------------
+
+
+def check_raw_config(raw, where: str = "config") -> None:
+    """Reject raw config data (TOML tables, ``--set`` values, dataset.json's config) whose
+    *shape* the typed parser does not expect, with a one-line ConfigError naming the key:
+    a config or ``splits`` that is not a table, a split that is not a table, and numbers
+    that are not finite (TOML allows ``inf`` and ``nan``) or larger than MAX_NUMBER
+    (the seed excepted), which would overflow ratios such as duration / label_hop.
+    Type and range checks of single fields stay in config.py.
+    """
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{where}: a config must be a table of sections, got {type(raw).__name__}")
+    splits = raw.get("splits")
+    if splits is not None and not isinstance(splits, dict):
+        raise ConfigError(f"{where}: splits must be a table of [splits.NAME] with manifest and count, "
+                          f"got {splits!r}")
+    _finite(raw, where, "")
+
+
+def _finite(x, where: str, key: str) -> None:
+    if isinstance(x, dict):
+        for k, v in x.items():
+            _finite(v, where, f"{key}.{k}" if key else str(k))
+    elif isinstance(x, (list, tuple)):
+        for v in x:
+            _finite(v, where, key)
+    elif isinstance(x, bool):
+        return
+    elif isinstance(x, (int, float)):
+        try:
+            ok = math.isfinite(float(x))
+        except OverflowError:
+            ok = False
+        if not ok:
+            raise ConfigError(f"{where}: {key or 'config'} = {x!r} is not a finite number; write a number "
+                              f"within float range")
+        if key != "seed" and abs(x) > MAX_NUMBER:
+            # no physical quantity, count or rate here comes near; ratios of such numbers overflow
+            raise ConfigError(f"{where}: {key} = {x!r} is out of range (|x| > {MAX_NUMBER:g}); check the value")

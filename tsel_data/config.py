@@ -151,8 +151,9 @@ def load_config(preset: str | None = None, path: str | None = None, overrides: l
         cdir = user.get("corpus", {}).get("dir")
         if cdir and not cdir.startswith("builtin:"):
             user["corpus"]["dir"] = os.path.join(base_dir, os.path.expanduser(cdir))
-        if user.get("room", {}).get("bank"):
-            user["room"]["bank"] = os.path.join(base_dir, user["room"]["bank"])
+        bank = user.get("room", {}).get("bank")
+        if bank and not bank.startswith("builtin:"):
+            user["room"]["bank"] = os.path.join(base_dir, os.path.expanduser(bank))
         raw = _merge(raw, user)
     for ov in overrides:
         raw = _merge(raw, _parse_override(ov))
@@ -215,10 +216,6 @@ def validate_config(cfg: Config, where: str = "config") -> None:
     sb = cfg.scene.speed.bounds
     if sb is None or sb[0] < 0:
         raise ConfigError(f"{where}: scene.speed must be non-negative degrees per second")
-    roomed = [n for n, sp in cfg.splits.items() if sp.rooms]
-    if roomed and not cfg.room.bank:
-        raise ConfigError(f"{where}: splits.{roomed[0]}.rooms names RIR-bank rooms but room.bank is not set; "
-                          f"pass --bank PATH (or --set room.bank='\"PATH\"')")
     nb = cfg.scene.interferers.bounds
     if nb is None or nb[0] < 1:
         raise ConfigError(f"{where}: scene.interferers must be >= 1 (a scene holds at least two sources)")

@@ -15,7 +15,7 @@ import numpy as np
 from .captions import max_similarity, tokens
 from .clip import Clip
 from .config import Config
-from .errors import GeometryError, TselError
+from .errors import ConfigError, GeometryError, TselError
 from .recipe import ArrayPose, Room, SceneRecipe, Source
 
 MAX_TRIES = 200
@@ -262,6 +262,10 @@ def resolve_bank(cfg: Config, out_dir: str) -> str | None:
     """
     path = cfg.room.bank
     if not path:
+        roomed = [n for n, sp in cfg.splits.items() if sp.rooms and sp.count]
+        if roomed:
+            raise ConfigError(f"splits.{roomed[0]}.rooms names RIR-bank rooms but room.bank is not set; "
+                              f"pass --bank PATH (a TAU-SRIR DB folder, SOFA files or a tsel bank)")
         return None
     if path == BUILTIN_DEMO_BANK:
         from .banks.build import build_bank
