@@ -98,7 +98,7 @@ def make_scene(split, index, *, fmt="mic4", rng, n_frames=20, fs=16000, hop_s=0.
 
 
 def make_dataset(root, *, fmt="mic4", splits=None, seed=0, n_frames=20, fs=16000, moving=(), additive=(),
-                 rotate=None, shard_size=2):
+                 rotate=None, shard_size=2, target_az=None):
     """Write a dataset under ``root``; returns {split: [RenderedScene, ...]}.
 
     splits: {name: n_scenes}. moving / additive: scene ids with a moving target / an
@@ -106,6 +106,7 @@ def make_dataset(root, *, fmt="mic4", splits=None, seed=0, n_frames=20, fs=16000
     """
     splits = splits or {"train": 3, "test": 2}
     rotate = rotate or {}
+    target_az = target_az or {}
     rng = np.random.default_rng(seed)
     out = {}
     doc = {"tool": "tsel-data", "version": "0.1.0", "format_version": 1,
@@ -116,7 +117,8 @@ def make_dataset(root, *, fmt="mic4", splits=None, seed=0, n_frames=20, fs=16000
         for i in range(count):
             sid = f"{split}-{i:06d}"
             scenes.append(make_scene(split, i, fmt=fmt, rng=rng, n_frames=n_frames, fs=fs, moving=sid in moving,
-                                     additive=sid in additive, rotate=rotate.get(sid, 0.0)))
+                                     additive=sid in additive, rotate=rotate.get(sid, 0.0),
+                                     az=target_az.get(sid)))
         attrs = {"fs": fs, "label_hop": 0.1, "format": fmt, "channel_names": list(CHANNEL_NAMES[fmt]),
                  "format_version": 1}
         entries = [write_shard(str(root), split, k, scenes[j: j + shard_size], attrs)

@@ -72,3 +72,15 @@ def test_additive_source_has_no_position():
     az, el, dist = source_labels(r, 1)
     assert np.all(np.isnan(az)) and np.all(np.isnan(el)) and np.all(np.isnan(dist))
     assert len(az) == r.n_frames == 10
+
+
+@pytest.mark.parametrize("length", [1, 300, 20000, 40000])
+def test_convolve_equals_direct_convolution(length):
+    rng = np.random.default_rng(length)
+    x = rng.standard_normal((2, 5000)).astype(np.float32)
+    h = rng.standard_normal((2, 3, length)).astype(np.float32)
+    y = convolve(x, h, 4000)
+    for s in range(2):
+        for c in range(3):
+            ref = np.convolve(x[s].astype(np.float64), h[s, c].astype(np.float64))[:4000]
+            np.testing.assert_allclose(y[s, c], ref, atol=2e-3 * np.abs(ref).max())

@@ -604,7 +604,8 @@ def _s(x) -> str:
 def check_raw_config(raw, where: str = "config") -> None:
     """Reject raw config data (TOML tables, ``--set`` values, dataset.json's config) whose
     *shape* the typed parser does not expect, with a one-line ConfigError naming the key:
-    a config or ``splits`` that is not a table, a split that is not a table, and numbers
+    a config or ``splits`` that is not a table, keys with control characters (they would
+    break the one-line messages), and numbers
     that are not finite (TOML allows ``inf`` and ``nan``) or larger than MAX_NUMBER
     (the seed excepted), which would overflow ratios such as duration / label_hop.
     Type and range checks of single fields stay in config.py.
@@ -621,6 +622,10 @@ def check_raw_config(raw, where: str = "config") -> None:
 def _finite(x, where: str, key: str) -> None:
     if isinstance(x, dict):
         for k, v in x.items():
+            if not isinstance(k, str) or any(ord(c) < 32 or ord(c) == 127 for c in k):
+                shown = f"{key}.{k!r}" if key else repr(k)
+                raise ConfigError(f"{where}: config key {shown} is not a plain name (control characters or not a "
+                                  f"string); keys are names such as room.rt60")
             _finite(v, where, f"{key}.{k}" if key else str(k))
     elif isinstance(x, (list, tuple)):
         for v in x:
@@ -628,6 +633,7 @@ def _finite(x, where: str, key: str) -> None:
     elif isinstance(x, bool):
         return
     elif isinstance(x, (int, float)):
+        key = key.encode("unicode_escape").decode("ascii")  # odd keys stay on one line
         try:
             ok = math.isfinite(float(x))
         except OverflowError:

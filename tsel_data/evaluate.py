@@ -75,13 +75,13 @@ class EvalResult:
         return d
 
     def format_text(self) -> str:
-        head = f"{'group':<28}{'scenes':>7}{'units':>8}{'MAE(deg)':>10}" + "".join(
+        head = f"{'group':<32}{'scenes':>7}{'units':>8}{'MAE(deg)':>10}" + "".join(
             f"{'acc@' + format(t, 'g'):>9}" for t in THRESHOLDS)
         lines = [f"split {self.split}: mean absolute azimuth error of the target (wrap-around)", head]
 
         def row(name, r):
             accs = "".join(f"{100 * r[f'acc{int(t)}']:>8.1f}%" for t in THRESHOLDS)
-            return f"{name:<28}{r['scenes']:>7}{r['units']:>8}{r['mae']:>10.2f}{accs}"
+            return f"{name:<32}{r['scenes']:>7}{r['units']:>8}{r['mae']:>10.2f}{accs}"
 
         lines.append(row("all", self.overall))
         for title, groups in (("scenario", self.by_scenario), ("motion", self.by_motion)):

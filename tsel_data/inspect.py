@@ -185,7 +185,7 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
         if np.ptp(tr[:, :2], axis=0).max() > 1e-3:
             ax_room.plot(tr[0, 0], tr[0, 1], "x", color=col, ms=7)  # start of a moving source
     ax_room.set_aspect("equal")
-    ax_room.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=8, frameon=False)
+    ax_room.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
     ax_room.set_title("room from above" + ("" if dims else " (array frame)"), fontsize=10)
 
     # --- azimuth over time ---------------------------------------------------------
@@ -203,7 +203,7 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
     ax_az.set_ylabel("azimuth (deg)")
     ax_az.set_title("azimuth per frame (thick = active)", fontsize=10)
     ax_az.grid(alpha=0.3)
-    ax_az.legend(fontsize=8, loc="upper right")
+    ax_az.legend(fontsize=8, loc="best", framealpha=0.8)
 
     # --- spectrogram of channel 0 --------------------------------------------------
     spec = np.abs(stft(scene.audio[:1], 1024, 256))[0].T

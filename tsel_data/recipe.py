@@ -92,7 +92,7 @@ class SceneRecipe:
     fs: int = 24000
     duration: float = 10.0
     label_hop: float = 0.1
-    rir_method: str = "ism"
+    rir_method: str = "hybrid"
     target_level_dbfs: float = -25.0
     activity_threshold_db: float = -30.0
     extra: dict = field(default_factory=dict)

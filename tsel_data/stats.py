@@ -178,9 +178,15 @@ def plot_stats(stats: dict, path: str, dpi: int = 100) -> str:
               ("rt60", "RT60 requested (s)", 20), ("rt60_measured", "RT60 measured (s)", 20),
               ("tir", "TIR (dB)", 20), ("query_words", "query length (words)", np.arange(0.5, 41.5, 1))]
     fig, axes = plt.subplots(2, 4, figsize=(16, 6.5))
+    def values(s, key):
+        return np.asarray([x for x in s["raw"][key] if x is not None and np.isfinite(x)], dtype=float)
+
     for ax, (key, title, bins) in zip(axes.ravel(), panels):
+        if np.isscalar(bins):  # the same edges for every split, so they compare
+            every = np.concatenate([values(s, key) for s in stats.values()])
+            bins = np.histogram_bin_edges(every, bins) if every.size else bins
         for name, s in stats.items():
-            v = np.asarray([x for x in s["raw"][key] if x is not None and np.isfinite(x)], dtype=float)
+            v = values(s, key)
             if v.size:
                 ax.hist(v, bins=bins, histtype="step", lw=1.6, density=True, label=f"{name} ({v.size})")
         ax.set_title(title, fontsize=10)

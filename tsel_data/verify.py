@@ -34,60 +34,89 @@ _EPS = 1e-12
 
 
 def doa_maps(audio, fs: int, label_hop: float, n_frames: int, fmt: str, mic_positions=None,
-             n_fft: int = 1024, fmin: float = 200.0, fmax: float = 8000.0) -> np.ndarray:
+             n_fft: int = 1024, fmin: float = 200.0, fmax: float = 8000.0, dynamic_db: float = 20.0) -> np.ndarray:
     """Azimuth maps per label frame: audio [C, T] -> float64 [n_frames, 360] (bin k = k degrees).
 
     Higher means more evidence for a source there. STFT frames (hop n_fft/2) are
-    assigned to the label frame that contains their centre.
+    assigned to the label frame that contains their centre. Only time-frequency bins
+    within ``dynamic_db`` of their STFT frame's loudest bin count: PHAT weighs every
+    bin alike, so without this the bins a narrow-band source leaves empty would be
+    won by whatever faint residue (another source's tail, an additive bed) fills them.
     """
     hop = n_fft // 2
     spec = stft(audio, n_fft, hop, center=False)  # [C, J, K]
     centres = np.arange(spec.shape[1]) * hop + n_fft / 2
     owner = np.floor(centres / (label_hop * fs)).astype(int)
+    keep = owner < n_frames
+    spec, owner = spec[:, keep], owner[keep]
     freqs = np.fft.rfftfreq(n_fft, 1.0 / fs)
     band = (freqs >= fmin) & (freqs <= min(fmax, fs / 2))
-    assign = np.zeros((n_frames, spec.shape[1]))
-    ok = owner < n_frames
-    assign[owner[ok], np.flatnonzero(ok)] = 1.0
+    spec = spec[:, :, band]
+    power = np.mean(np.abs(spec) ** 2, axis=0)  # [J, K]
+    mask = power >= power.max(axis=1, keepdims=True) * 10 ** (-dynamic_db / 10)
+    mask &= power > 0
     if fmt == "foa":
-        return _intensity_maps(spec[:, :, band], assign)
-    return _srp_maps(spec, band, assign, np.asarray(mic_positions, dtype=np.float64), fs, n_fft, fmt)
+        return _intensity_maps(spec, mask, owner, n_frames)
+    return _srp_maps(spec, mask, owner, n_frames, band, n_fft, np.asarray(mic_positions, dtype=np.float64), fs)
 
 
-def _srp_maps(spec, band, assign, mics, fs, n_fft, fmt, up: int = 4) -> np.ndarray:
+def _per_label_frame(x: np.ndarray, owner: np.ndarray, n_frames: int) -> np.ndarray:
+    """Sum rows of x [J, ...] into label frames [n_frames, ...] (owner sorted ascending)."""
+    out = np.zeros((n_frames,) + x.shape[1:], dtype=x.dtype)
+    if len(owner):
+        starts = np.flatnonzero(np.r_[True, np.diff(owner) > 0])
+        out[owner[starts]] = np.add.reduceat(x, starts, axis=0)
+    return out
+
+
+def _srp_maps(spec, mask, owner, n_frames, band, n_fft, mics, fs, up: int = 4) -> np.ndarray:
     pairs = np.array(mic_pairs(spec.shape[0]))
-    cross = spec[pairs[:, 0]] * np.conj(spec[pairs[:, 1]])  # [P, J, K]
-    cross = np.where(band, cross / (np.abs(cross) + _EPS), 0.0)
-    summed = np.einsum("fj,pjk->fpk", assign, cross)  # PHAT cross-spectra summed per label frame
+    cross = spec[pairs[:, 0]] * np.conj(spec[pairs[:, 1]])  # [P, J, K in band]
+    cross = np.where(mask, cross / (np.abs(cross) + _EPS), 0.0)
+    summed = np.zeros((n_frames, len(pairs), len(band)), dtype=np.complex128)
+    summed[:, :, band] = _per_label_frame(cross.transpose(1, 0, 2), owner, n_frames)
     n = n_fft * up  # zero-padded inverse FFT: GCC interpolated to 1/up sample
-    gcc = np.fft.irfft(summed, n=n, axis=-1)  # [F, P, n]
+    gcc = np.fft.irfft(summed, n=n, axis=-1)  # [F, P, n]; lag τ at index τ·fs·up mod n
     # A planar array cannot tell up from down: search the upper half only.
     planar = np.ptp(mics[:, 2]) < 1e-6
     els = np.arange(0.0, 61.0, 15.0) if planar else np.arange(-60.0, 61.0, 15.0)
-    az = np.arange(360.0)
-    u = sph_to_cart(az[None, :], els[:, None], 1.0)  # [E, 360, 3]
+    u = sph_to_cart(np.arange(360.0)[None, :], els[:, None], 1.0)  # [E, 360, 3]
     dp = mics[pairs[:, 0]] - mics[pairs[:, 1]]  # [P, 3]
-    tau = -np.einsum("pc,eac->pea", dp, u) / SOUND_SPEED  # seconds
-    idx = np.rint(tau * fs * up).astype(int) % n  # [P, E, 360]
-    maps = np.zeros((gcc.shape[0], len(els), 360))
+    tau = -np.einsum("pc,eac->pea", dp, u) / SOUND_SPEED  # [P, E, 360] seconds
+    idx = np.rint(tau * fs * up).astype(int) % n
+    maps = np.zeros((n_frames, len(els), 360))
     for p in range(len(pairs)):
         maps += gcc[:, p, idx[p]]
     return maps.max(axis=1)
 
 
-def _intensity_maps(spec, assign, smooth_deg: float = 4.0) -> np.ndarray:
+def _intensity_maps(spec, mask, owner, n_frames, smooth_deg: float = 4.0) -> np.ndarray:
     w, y, x = spec[0], spec[1], spec[3]  # ACN order W, Y, Z, X
     ix, iy = np.real(np.conj(w) * x), np.real(np.conj(w) * y)  # [J, K]
     az = np.degrees(np.arctan2(iy, ix))
-    weight = np.hypot(ix, iy)
+    weight = np.hypot(ix, iy) * mask
     bins = np.floor(az + 0.5).astype(int) % 360
-    hist = np.zeros((spec.shape[1], 360))
-    np.add.at(hist, (np.repeat(np.arange(spec.shape[1]), bins.shape[1]), bins.ravel()), weight.ravel())
+    n_j = spec.shape[1]
+    flat = (np.arange(n_j)[:, None] * 360 + bins).ravel()
+    hist = np.bincount(flat, weights=weight.ravel(), minlength=n_j * 360).reshape(n_j, 360)
+    hist = _per_label_frame(hist, owner, n_frames)
     # Circular Gaussian smoothing, so near-identical directions pool into one peak.
     d = np.minimum(np.arange(360), 360 - np.arange(360))
     kern = np.exp(-0.5 * (d / smooth_deg) ** 2)
-    hist = np.real(np.fft.ifft(np.fft.fft(hist, axis=-1) * np.fft.fft(kern), axis=-1))
-    return assign @ hist
+    return np.real(np.fft.ifft(np.fft.fft(hist, axis=-1) * np.fft.fft(kern), axis=-1))
+
+
+def vote_histogram(maps: np.ndarray, smooth_deg: float = 3.0) -> np.ndarray:
+    """One vote per label frame at its map's peak -> circularly smoothed histogram [360].
+
+    Voting (rather than summing maps) keeps a few frames with very coherent residue,
+    e.g. a steady hum of a source labelled inactive, from outweighing the majority.
+    """
+    votes = np.argmax(maps, axis=1)[np.ptp(maps, axis=1) > 0]
+    hist = np.bincount(votes, minlength=360).astype(np.float64)
+    d = np.minimum(np.arange(360), 360 - np.arange(360))
+    kern = np.exp(-0.5 * (d / smooth_deg) ** 2)
+    return np.real(np.fft.ifft(np.fft.fft(hist) * np.fft.fft(kern)))
 
 
 def _peaks(m: np.ndarray, k: int, min_sep: float) -> list[int]:
@@ -106,12 +135,12 @@ def _wrap(a: float) -> float:
     return float((a + 180.0) % 360.0 - 180.0)
 
 
-def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: int = 5) -> dict:
+def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: int = 5, **map_kw) -> dict:
     """Check one scene (with audio). Returns {scene_id, status, mode, sources: [...]}.
 
     status: ``agree`` | ``disagree`` | ``untested`` (no frame on which a check can run).
     """
-    maps = doa_maps(scene.audio, scene.fs, scene.label_hop, scene.n_frames, scene.format, scene.mic_positions)
+    maps = doa_maps(scene.audio, scene.fs, scene.label_hop, scene.n_frames, scene.format, scene.mic_positions, **map_kw)
     az_all = scene.azimuth.astype(np.float64)
     directional = [s for s in range(scene.n_sources) if np.isfinite(az_all[s]).any()]
     roles = [src.get("role", "target" if i == 0 else "interferer")
@@ -127,7 +156,7 @@ def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: in
         groups = [dom] if static else [g for g in np.split(dom, np.flatnonzero(np.diff(dom // window)) + 1) if len(g)]
         errs, ests, truths = [], [], []
         for g in groups:
-            est = float(np.argmax(maps[g].sum(axis=0)))
+            est = float(np.argmax(vote_histogram(maps[g])))
             truth = circular_mean(az_all[s][g])
             errs.append(float(azimuth_difference(est, truth)))
             ests.append(_wrap(est))
@@ -137,12 +166,16 @@ def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: in
                         "label": truths[0], "estimate": ests[0], "error": err, "agree": err <= tolerance})
     mode = "single"
     if not results and directional:
-        frames = np.flatnonzero(active[directional].any(axis=0))
+        # Additive sources are the same signal on every channel: their zero-lag peak would
+        # pose as a direction, so overlap mode uses only the frames where they are silent.
+        positionless = [s for s in range(scene.n_sources) if s not in directional]
+        quiet = ~active[positionless].any(axis=0) if positionless else np.ones(scene.n_frames, bool)
+        frames = np.flatnonzero(active[directional].any(axis=0) & quiet)
         static_all = all(float(np.nanmax(azimuth_difference(az_all[s], az_all[s][np.isfinite(az_all[s])][0]))) < 1.0
                          for s in directional)
         if len(frames) >= min_frames and static_all:
             mode = "overlap"
-            m = maps[frames].sum(axis=0)
+            m = vote_histogram(maps[frames])
             peaks = _peaks(m, len(directional), min_sep=2 * tolerance)
             for s in directional:
                 truth = circular_mean(az_all[s][np.isfinite(az_all[s])])
@@ -178,6 +211,10 @@ class VerifyReport:
             rate = f"{100 * v['rate']:.1f}%" if v["tested"] else "-"
             med = f"{v['median_error']:.1f}" if v["tested"] else "-"
             lines.append(f"{name:<10}{v['scenes']:>8}{v['tested']:>8}{v['agree']:>8}{rate:>9}{med:>12}")
+        untested = sum(len(v["untested"]) for v in self.splits.values())
+        if untested:
+            lines.append(f"{untested} scene(s) untested: no frames where one source plays alone, nor frames "
+                         f"free of additive sources")
         bad = [(n, d) for n, v in self.splits.items() for d in v["disagree"]]
         if bad:
             lines.append(f"{len(bad)} scene(s) disagree:")

@@ -34,7 +34,7 @@ def diffuse_coherence(positions: np.ndarray, freqs: np.ndarray, c: float = SOUND
 def diffuse_noise(
     rng: np.random.Generator, n_sets: int, n: int, fs: int, positions: np.ndarray | None = None, foa: bool = False
 ) -> np.ndarray:
-    """``n_sets`` independent stationary noises [n_sets, C, n] (float64, W / omni variance 1)
+    """``n_sets`` independent stationary noises [n_sets, C, n] (float, W / omni variance 1)
     with diffuse-field inter-channel statistics.
 
     foa=True: 4 uncorrelated channels W, Y, Z, X with variances 1, 1/3, 1/3, 1/3.

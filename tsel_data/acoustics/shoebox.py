@@ -7,9 +7,9 @@ r / c · fs samples with amplitude 1 / (4π r) (pyroomacoustics' scale).
 Methods (docs/acoustics.md):
 
 - ``ism``: every image source up to the RIR length, one reflection coefficient
-  β = exp(-a) for all walls; ``a`` is fitted so that the T30 of the image energy of the
-  first point at channel 0 equals ``room.rt60`` (the energy histogram per reflection
-  order is computed once, so each fit step is one matrix-vector product).
+  β = exp(-a) for all walls; ``a`` is fitted so that the T30 of the first point's
+  channel-0 response equals ``room.rt60`` (its image amplitudes per arrival sample and
+  reflection order are tabulated once, so each fit step is one matrix-vector product).
 - ``hybrid`` (default): image sources up to a transition time (80 ms, later if a source
   is far), then Gaussian noise with diffuse-field coherence (late.py) whose energy
   envelope continues the expected image-source energy at the transition and decays with
@@ -134,6 +134,7 @@ def ism_absorption(dims, rt60: float, c: float = SOUND_SPEED) -> float:
     x = np.linspace(0.0, 10.0 * np.log(10.0) * dims.max(), 256)
     curve = model_edc(dims, x)
     x30 = decay_time(10.0 * np.log10(curve / curve[0]), x[1] - x[0])
+    # x = 2 a c t: the model's T30 in x-units is X30, so in seconds X30 / (2 a c)
     return float(x30 / (2.0 * c * rt60))
 
 
@@ -246,4 +247,7 @@ def _check_points(points: np.ndarray, mics: np.ndarray, dims: np.ndarray) -> Non
             raise GeometryError(f"source at {np.round(p, 3).tolist()} is within 1 cm of a microphone; move it away")
     lo, hi = mics.min(axis=0), mics.max(axis=0)
     if np.any(lo <= 0) or np.any(hi >= dims):
-        raise GeometryError(f"the array's capsules span {np.round(lo, 3).tolist()}–{np.round(hi, 3).tolist()}, outside room {dims.tolist()}")
+        raise GeometryError(
+            f"the array's capsules span {np.round(lo, 3).tolist()}–{np.round(hi, 3).tolist()}, "
+            f"outside room {dims.tolist()}; move the array inside"
+        )

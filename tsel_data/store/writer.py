@@ -168,13 +168,20 @@ def remove_stale_tmp(path: str) -> list[str]:
 
 
 def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs here. A zombie (killed, not yet reaped: common in
+    containers whose PID 1 reaps slowly) counts as dead: it writes nothing any more."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
         return True
-    return True
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            state = f.read().rsplit(b")", 1)[1].split()[0]
+        return state not in (b"Z", b"X")
+    except (OSError, IndexError):
+        return True
 
 
 _NO_SPACE = (errno.ENOSPC, errno.EDQUOT)

@@ -1,0 +1,18 @@
+"""``tsel eval --pred FILE DIR --split test``: the paper's azimuth error of a model's predictions."""
+import json
+
+import click
+
+
+@click.command("eval")
+@click.argument("dataset_dir", type=click.Path(file_okay=False))
+@click.option("--pred", "pred_file", required=True, type=click.Path(dir_okay=False),
+              help="Predictions, JSON Lines: one {\"scene_id\", \"azimuth\" | \"distribution\"} per scene.")
+@click.option("--split", default="test", show_default=True, help="Split the predictions are for.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON (with per-scene errors) instead of text.")
+def eval_cmd(dataset_dir, pred_file, split, as_json):
+    """Mean absolute azimuth error (deg, wrap-around) of the target, and accuracy within 5/10/20 deg."""
+    from ..evaluate import evaluate
+
+    result = evaluate(dataset_dir, split, pred_file)
+    click.echo(json.dumps(result.to_dict(), indent=1) if as_json else result.format_text())

@@ -1,0 +1,25 @@
+"""``tsel verify DIR``: check labels against the audio with a classical localizer."""
+import json
+
+import click
+
+
+@click.command("verify")
+@click.argument("dataset_dir", type=click.Path(file_okay=False))
+@click.option("--split", "splits", multiple=True, help="Only this split (repeatable; default: all).")
+@click.option("--tolerance", type=float, default=20.0, show_default=True, help="Agreement threshold (deg).")
+@click.option("--max-scenes", type=int, help="Check only the first N scenes of each split.")
+@click.option("--fail-under", type=float, default=0.0, show_default=True,
+              help="Exit with 1 if a split's agreement rate (0-1) is below this.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON (every disagreeing scene, every source).")
+@click.pass_context
+def verify_cmd(ctx, dataset_dir, splits, tolerance, max_scenes, fail_under, as_json):
+    """Agreement of labels with SRP-PHAT (mic arrays) or the intensity vector (FOA), per split."""
+    from ..verify import verify_dataset
+
+    report = verify_dataset(dataset_dir, splits or None, tolerance=tolerance, max_scenes=max_scenes)
+    click.echo(json.dumps(report.to_dict(), indent=1) if as_json else report.format_text())
+    low = [s for s, v in report.splits.items() if v["tested"] and v["rate"] < fail_under]
+    if low:
+        click.echo(f"agreement below {fail_under:g} in split(s): {', '.join(low)}", err=True)
+        ctx.exit(1)
