@@ -214,16 +214,16 @@ def test_unknown_config_key_suggests_closest(tmp_path, demo_corpus):
 
 
 GEOMETRY = {
-    # override, needles, does `tsel generate` reject it today (False: only `tsel check`, see the report)
+    # override, needles, whether `tsel generate` rejects it too (it runs the same validation)
     "room-smaller-than-array": ('room.length=["uniform", 1.5, 10.0]',
-                                ["room.length minimum 1.5 m", "array plus its margins", "raise the minimum"], False),
+                                ["room.length minimum 1.5 m", "array plus its margins", "raise the minimum"], True),
     "min-greater-than-max": ('room.width=["uniform", 9.0, 6.0]', ["room.width", "min 9.0 > max 6.0", "swap"], True),
     "separation-impossible": ("scene.min_separation=200", ["min_separation 200", "impossible"], True),
     "separation-unplaceable": ("scene.min_separation=179.9", ["could not place", "lower scene.min_separation"], True),
     "distance-unreachable": ('sources.distance=["uniform", 8.0, 9.0]',
-                             ["sources.distance minimum 8.0 m cannot fit in the smallest room"], False),
+                             ["sources.distance minimum 8.0 m cannot fit in the smallest room"], True),
     "sources-above-ceiling": ('sources.height=["uniform", 4.8, 5.0]', ["sources.height minimum 4.8 m",
-                                                                       "lowest room"], False),
+                                                                       "lowest room"], True),
 }
 
 

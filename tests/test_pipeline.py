@@ -102,11 +102,11 @@ def test_workers_resume_and_reruns_give_identical_files(dataset, tmp_path):
     # a killed run: one shard missing, a temporary file left behind, no dataset.json
     os.remove(os.path.join(two, "train", "shard-00001.h5"))
     os.remove(os.path.join(two, "dataset.json"))
-    open(os.path.join(two, "train", "shard-00001.h5.tmp-999"), "wb").write(b"partial")
+    open(os.path.join(two, "train", "shard-00001.h5.tmp-4194305"), "wb").write(b"partial")
     with pytest.raises(Exception, match="not rendered"):
         finalize(two)
     generate(cfg, two, workers=1, resume=True, progress=False)
-    assert not os.path.exists(os.path.join(two, "train", "shard-00001.h5.tmp-999"))  # leftovers cleaned
+    assert not os.path.exists(os.path.join(two, "train", "shard-00001.h5.tmp-4194305"))  # leftovers cleaned
     assert _files(two) == ref
 
 

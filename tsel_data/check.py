@@ -114,7 +114,7 @@ def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan
     """
     rep = CheckReport(f"config {cfg.name}")
     try:
-        validate_config(cfg)
+        validate_config(cfg, smallest_room=False)  # geometry_problems below reports every one
     except TselError as e:
         rep.error(e)
         return rep  # later checks assume a sane config

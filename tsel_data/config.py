@@ -133,10 +133,13 @@ def preset_names() -> list[str]:
     return sorted(p.name[:-5] for p in resources.files("tsel_data.presets").iterdir() if p.name.endswith(".toml"))
 
 
-def load_config(preset: str | None = None, path: str | None = None, overrides: list[str] = (), **flags) -> Config:
+def load_config(preset: str | None = None, path: str | None = None, overrides: list[str] = (),
+                validate: bool = True, **flags) -> Config:
     """Build a validated Config from a preset and/or a TOML file, then overrides.
 
-    ``flags`` are the CLI's shortcuts: ``corpus_dir``, ``seed``, ``splits`` ({name: count}).
+    ``flags`` are the CLI's shortcuts: ``corpus_dir``, ``seed``, ``splits`` ({name: count}),
+    ``bank``. ``validate=False`` skips the checks across fields (``tsel check`` then
+    collects every problem instead of stopping at the first).
     """
     raw: dict = {}
     if preset:
@@ -165,10 +168,13 @@ def load_config(preset: str | None = None, path: str | None = None, overrides: l
         raw["seed"] = flags["seed"]
     for name, count in (flags.get("splits") or {}).items():
         raw.setdefault("splits", {}).setdefault(name, {})["count"] = count
-    return parse_config(raw, where=path or (f"preset {preset}" if preset else "config"))
+    return parse_config(raw, where=path or (f"preset {preset}" if preset else "config"), validate=validate)
 
 
-def parse_config(raw: dict, where: str = "config") -> Config:
+def parse_config(raw: dict, where: str = "config", validate: bool = True) -> Config:
+    from .check import check_raw_config  # the validation module; imported here to avoid a cycle
+
+    check_raw_config(raw, where)
     _check_keys(raw, TOP_KEYS, where, "")
     kw: dict[str, Any] = {}
     for key in ("name", "seed", "on_bad_clip"):
@@ -183,12 +189,17 @@ def parse_config(raw: dict, where: str = "config") -> Config:
         splits[name] = _parse_section(sraw, SplitConfig, where, f"splits.{name}")
     kw["splits"] = splits
     cfg = Config(**kw)
-    validate_config(cfg, where)
+    if validate:
+        validate_config(cfg, where)
     return cfg
 
 
-def validate_config(cfg: Config, where: str = "config") -> None:
-    """Checks that need more than one field: ranges, choices, geometry that cannot work."""
+def validate_config(cfg: Config, where: str = "config", smallest_room: bool = True) -> None:
+    """Checks that need more than one field: ranges, choices, geometry that cannot work.
+
+    smallest_room: also reject layouts that fail in the smallest room the ranges allow
+    (check.geometry_problems; ``tsel check`` collects those itself).
+    """
     if not isinstance(cfg.seed, int) or cfg.seed < 0:
         raise ConfigError(f"{where}: seed must be a non-negative integer, got {cfg.seed!r}")
     for (sec, key), allowed in CHOICES.items():
@@ -222,6 +233,12 @@ def validate_config(cfg: Config, where: str = "config") -> None:
     if cfg.room.bank:
         return
     _check_geometry(cfg, where)
+    if smallest_room:
+        from .check import geometry_problems
+
+        problems = geometry_problems(cfg)
+        if problems:
+            raise problems[0]
 
 
 def _check_geometry(cfg: Config, where: str) -> None:
@@ -251,7 +268,7 @@ def _check_geometry(cfg: Config, where: str) -> None:
                           f"(at most {reach:.2f} m from the array); lower it or enlarge the room")
     if cfg.scene.min_separation * (cfg.scene.interferers.bounds[1] + 1) > 360:
         raise ConfigError(f"{where}: scene.min_separation {cfg.scene.min_separation}° is impossible with "
-                          f"{cfg.scene.interferers.bounds[1] + 1} directional sources")
+                          f"{int(cfg.scene.interferers.bounds[1]) + 1} directional sources")
 
 
 def with_overrides(cfg: Config, **sections) -> Config:

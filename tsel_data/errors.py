@@ -22,8 +22,8 @@ class ConfigError(TselError):
     """A config or preset is invalid."""
 
 
-class GeometryError(TselError):
-    """A room, array or source layout that cannot be realised."""
+class GeometryError(ConfigError):
+    """A room, array or source layout that cannot be realised (a kind of config error)."""
 
 
 class DatasetError(TselError):

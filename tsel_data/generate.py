@@ -24,7 +24,7 @@ from .errors import DatasetError
 from .executors import Runner
 from .plan import CatalogView, plan_split_json, resolve_bank
 from .recipe import SceneRecipe, read_plan
-from .store.writer import FORMAT_VERSION, shard_names, sha256_file, write_shard
+from .store.writer import FORMAT_VERSION, remove_stale_tmp, shard_names, sha256_file, write_error, write_shard
 
 PLAN_DIR = "plan"
 CONFIG_FILE = "plan/config.json"
@@ -64,7 +64,10 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
             raise DatasetError(f"{out_dir} was planned with a different config; --resume needs the same "
                                f"config, seed and splits (compare with {stored})")
         return {s: sp.count for s, sp in cfg.splits.items()}
-    os.makedirs(os.path.join(out_dir, PLAN_DIR), exist_ok=True)
+    try:
+        os.makedirs(os.path.join(out_dir, PLAN_DIR), exist_ok=True)
+    except OSError as e:
+        raise write_error(f"cannot create {out_dir}", e, out_dir) from None
     catalog = build_catalog(cfg, out_dir, workers=workers)
     bank_path = resolve_bank(cfg, out_dir)
     write_bad_clips(os.path.join(out_dir, "bad_clips.jsonl"), catalog.bad)
@@ -234,17 +237,23 @@ def _dir_size(d: str) -> int:
 
 
 def _write_lines(path: str, lines: list[str]) -> None:
-    tmp = f"{path}.tmp-{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as f:
-        for line in lines:
-            f.write(line)
-            f.write("\n")
-    os.replace(tmp, path)
+    _write_text(path, "".join(line + "\n" for line in lines))
 
 
 def _write_json(path: str, doc: dict) -> None:
+    _write_text(path, json.dumps(doc, ensure_ascii=False, indent=1) + "\n")
+
+
+def _write_text(path: str, text: str) -> None:
+    """Atomic write (temporary name, then rename); a failed write is one clear line."""
+    remove_stale_tmp(path)
     tmp = f"{path}.tmp-{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as f:
-        json.dump(doc, f, ensure_ascii=False, indent=1)
-        f.write("\n")
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except OSError as e:
+        raise write_error(f"cannot write {os.path.basename(path)}", e, os.path.dirname(path)) from None
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)

@@ -275,6 +275,13 @@ def resolve_bank(cfg: Config, out_dir: str) -> str | None:
             build_bank(path, format=cfg.scene.format, n_rooms=4, seed=0, fs=cfg.audio.fs,
                        distances=(1.0, 2.0), heights=(-0.3, 0.3), step_deg=10.0)
     path = os.path.abspath(os.path.expanduser(path))
+    from dataclasses import replace
+
+    from .check import bank_problems
+
+    problems = bank_problems(replace(cfg, room=replace(cfg.room, bank=path)))
+    if problems:
+        raise problems[0]
     bank = open_bank_cached(path)
     bank.require_fs(cfg.audio.fs)
     if bank.format != cfg.scene.format:

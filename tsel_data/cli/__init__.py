@@ -10,7 +10,13 @@ import click
 
 from ..errors import TselError
 from .bank import bank
+from .check import check_cmd
 from .corpus import corpus
+from .eval import eval_cmd
+from .export import export_cmd
+from .inspect import inspect_cmd
+from .stats import stats_cmd
+from .verify import verify_cmd
 from .dataset import finalize_cmd, generate_cmd, plan_cmd, render_cmd
 from .presets import presets_cmd
 
@@ -21,7 +27,8 @@ def cli():
     """Build datasets for text-queried target sound event localization."""
 
 
-for _cmd in (generate_cmd, plan_cmd, render_cmd, finalize_cmd, corpus, bank, presets_cmd):
+for _cmd in (generate_cmd, plan_cmd, render_cmd, finalize_cmd, check_cmd, inspect_cmd, stats_cmd, eval_cmd,
+             export_cmd, verify_cmd, corpus, bank, presets_cmd):
     cli.add_command(_cmd)
 
 

@@ -34,7 +34,7 @@ def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, **confi
     if dataset_dir:
         rep = check_dataset(dataset_dir, workers=_workers(workers), audio=not no_audio)
     else:
-        cfg = _load(**config_opts)  # the same options, loading and messages as `tsel generate`
+        cfg = _load(**config_opts, validate=False)  # as `tsel generate`, but every problem is collected
         rep = check_config(cfg, out_dir=out_dir, workers=_workers(workers), plan=not no_plan)
     if as_json:
         click.echo(json.dumps(rep.to_dict(), indent=1, ensure_ascii=False))

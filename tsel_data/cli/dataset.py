@@ -24,7 +24,7 @@ def _config_options(f):
     return f
 
 
-def _load(preset, config_path, corpus_dir, splits, seed, bank, overrides):
+def _load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validate=True):
     from ..config import load_config
 
     if not preset and not config_path:
@@ -36,7 +36,7 @@ def _load(preset, config_path, corpus_dir, splits, seed, bank, overrides):
             raise TselError(f"--split {s!r}: expected NAME=COUNT, e.g. --split train=100")
         counts[name] = int(count)
     return load_config(preset=preset, path=config_path, overrides=list(overrides), corpus_dir=corpus_dir,
-                       seed=seed, splits=counts, bank=bank)
+                       seed=seed, splits=counts, bank=bank, validate=validate)
 
 
 def _workers(n):
