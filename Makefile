@@ -13,10 +13,14 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[test]"
 	touch $(STAMP)
 
-# Build the demo dataset from the built-in synthetic corpus (no downloads), then summarise it.
+# Build the demo dataset from the built-in synthetic corpus (no downloads), then summarise it,
+# draw one scene and check its labels against the audio.
 demo: $(STAMP)
 	$(BIN)/tsel generate --preset demo --out $(DEMO_OUT) --resume
-	@echo "demo dataset: $(DEMO_OUT)/dataset.json"
+	$(BIN)/tsel stats $(DEMO_OUT) --png $(DEMO_OUT)/stats.png
+	$(BIN)/tsel inspect $(DEMO_OUT) test/0 --png $(DEMO_OUT)/test-000000.png --wav $(DEMO_OUT)/test-000000.wav
+	$(BIN)/tsel verify $(DEMO_OUT)
+	@echo "demo dataset in $(DEMO_OUT)/ (dataset.json; pictures: stats.png, test-000000.png)"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
@@ -27,6 +31,8 @@ test-fast: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_simulated.py
+	$(BIN)/python benchmarks/bench_banks.py
+	$(BIN)/python benchmarks/bench_scaling.py
 
 clean:
 	rm -rf $(DEMO_OUT) .pytest_cache
