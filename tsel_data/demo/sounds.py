@@ -15,7 +15,7 @@ type       temporal     model
 siren      continuous   tone whose frequency sweeps between ~600 and ~1400 Hz
 engine     continuous   firing pulses at 20-37 Hz exciting a low resonance, plus rumble
 bell       continuous   inharmonic partials (hum, prime, tierce, quint, nominal) tolled
-footsteps  intermittent heel thud + toe scuff every ~0.5 s
+footsteps  intermittent heel thud + toe tap every ~0.5 s
 rain       continuous   broadband (white) noise plus random droplet pings
 birds      intermittent phrases of short 2-5 kHz frequency sweeps
 clock      intermittent 2-4 kHz clicks, exactly periodic at 1 or 2 Hz (tick-tock)
@@ -211,9 +211,9 @@ def engine(rng, fs, n):
 
 def bell(rng, fs, n):
     """Church bell tolled every 1.6-3.2 s. Partials relative to the strike note f
-    (200-450 Hz): hum 0.5, prime 1, tierce 1.19, quint 1.5, nominal 2, and upper
+    (280-520 Hz): hum 0.5, prime 1, tierce 1.19, quint 1.5, nominal 2, and upper
     partials, each decaying exponentially (low ones for seconds)."""
-    f = rng.uniform(200, 450)
+    f = rng.uniform(280, 520)
     ratios = np.array([0.5, 1.0, 1.19, 1.5, 2.0, 2.52, 2.66, 3.01, 4.16, 5.43])
     amps = np.array([0.6, 0.7, 0.6, 0.3, 1.0, 0.35, 0.3, 0.25, 0.15, 0.1])
     taus = np.array([5.0, 3.0, 2.5, 1.8, 2.0, 1.0, 0.9, 0.7, 0.4, 0.3])
@@ -231,9 +231,9 @@ def bell(rng, fs, n):
 def footsteps(rng, fs, n):
     """Walking: a step every 0.45-0.65 s (5 % jitter), left/right alternately louder;
     each step a low heel thud (noise low-passed at 300-600 Hz, ~20 ms decay) and a
-    toe scuff 40-80 ms later (noise band-passed 0.8-4 kHz); sometimes one pause."""
+    toe tap 40-80 ms later (noise band-passed 1-5 kHz); sometimes one pause."""
     pace = rng.uniform(0.45, 0.65)
-    fc_heel, fc_toe = rng.uniform(300, 600), rng.uniform(800, 1500)
+    fc_heel, fc_toe = rng.uniform(300, 600), rng.uniform(1000, 1800)
     pause_at = rng.uniform(2.0, 6.0) if rng.random() < 0.5 else np.inf
     x, t, k = np.zeros(n), rng.uniform(0.05, 0.4), 0
     while t < n / fs:
@@ -241,9 +241,9 @@ def footsteps(rng, fs, n):
         heel = _filt(_decaying_noise(rng, fs, 0.12, rng.uniform(0.015, 0.025)), fs,
                      "lowpass", fc_heel, 4)
         toe = _filt(_decaying_noise(rng, fs, 0.08, 0.015), fs, "bandpass",
-                    (fc_toe, 4000))
+                    (fc_toe, 5000))
         _add(x, side * heel / np.abs(heel).max(), t * fs)
-        _add(x, side * rng.uniform(0.3, 0.5) * toe / np.abs(toe).max(),
+        _add(x, side * rng.uniform(0.5, 0.8) * toe / np.abs(toe).max(),
              (t + rng.uniform(0.04, 0.08)) * fs)
         t += pace * (1 + 0.05 * rng.standard_normal())
         if t > pause_at:
@@ -297,7 +297,7 @@ def birds(rng, fs, n):
 def clock(rng, fs, n):
     """Clock: a click exactly every P = 1.0 s or 0.5 s (x(1 +- 0.5 %) per clock),
     alternating "tick" and a lower, softer "tock"; each click a pair of damped sines at
-    2-3.5 kHz (~2 ms decay) with a short noise transient."""
+    2-3.5 kHz (~2 ms decay) with a short 1.5-6 kHz noise transient."""
     period = (1.0 if rng.random() < 0.5 else 0.5) * (1 + rng.uniform(-0.005, 0.005))
     f = rng.uniform(2000, 3500)
     x = np.zeros(n)
@@ -306,7 +306,8 @@ def clock(rng, fs, n):
         g = 1.0 if k % 2 == 0 else 0.85
         click = _damped_sines(fs, [f * g, 1.37 * f * g, 0.31 * f], [1.0, 0.5, 0.3],
                               [0.002, 0.0015, 0.006], 0.04)
-        click[: int(0.002 * fs)] += 0.3 * rng.standard_normal(int(0.002 * fs))
+        click[: int(0.002 * fs)] += _filt(0.3 * rng.standard_normal(int(0.002 * fs)), fs,
+                                          "bandpass", (1500, 6000))
         _add(x, (1.0 if k % 2 == 0 else 0.75) * click, t * fs)
     return x
 
@@ -330,15 +331,15 @@ def knock(rng, fs, n):
 
 
 def wind(rng, fs, n):
-    """Wind: noise in four bands (centres ~150, 300, 600, 1100 Hz, scaled per clip)
+    """Wind: noise in four bands (centres ~70, 140, 280, 560 Hz, scaled per clip)
     whose gains drift independently (so the spectral peak moves, the "howl"), under a
     gust envelope that never falls below ~40 % of its maximum."""
     scale = rng.uniform(0.8, 1.25)
     x = np.zeros(n)
-    for fc, g in zip(np.array([150, 300, 600, 1100]) * scale, [1.0, 0.9, 0.6, 0.3]):
+    for fc, g in zip(np.array([70, 140, 280, 560]) * scale, [1.0, 0.9, 0.6, 0.3]):
         band = _filt(rng.standard_normal(n), fs, "bandpass", (fc / 1.4, fc * 1.4))
         x += g * (0.3 + _smooth(rng, n, fs, rng.uniform(0.3, 0.8))) ** 2 * band
-    x += 0.5 * _filt(rng.standard_normal(n), fs, "lowpass", 120, 2)
+    x += 0.5 * _filt(rng.standard_normal(n), fs, "lowpass", 80, 2)
     return x * (0.4 + 0.6 * _smooth(rng, n, fs, rng.uniform(0.15, 0.35)))
 
 
@@ -350,7 +351,7 @@ _VOWELS = np.array([  # (F1, F2, F3) in Hz, rough adult averages
 
 def _talker(rng, fs, n):
     """One voice: syllables of 120-280 ms in words of 1-3, phrases of 4-9 words with
-    0.3-0.8 s pauses; glottal pulses at f0 with slow intonation, tilted by two one-pole
+    0.2-0.6 s pauses; glottal pulses at f0 with slow intonation, tilted by two one-pole
     low-passes (-12 dB/oct) and a difference (+6 dB/oct lip radiation); each syllable
     a vowel (three formant resonators), a third of them preceded by a fricative
     (noise band-passed at 2.5-7 kHz, ~15 dB below the vowels)."""
@@ -364,7 +365,7 @@ def _talker(rng, fs, n):
     exc = signal.lfilter([1.0 - pole], [1.0, -pole], exc)
     exc = np.diff(exc, prepend=0.0)
     voiced, fric = np.zeros(n), np.zeros(n)
-    t, words = rng.uniform(0.0, 0.6), 0
+    t, words = rng.uniform(0.0, 0.3), 0
     tail = int(0.03 * fs)
     phrase_len = rng.integers(4, 10)
     while t < n / fs:
@@ -386,7 +387,7 @@ def _talker(rng, fs, n):
         t += rng.uniform(0.02, 0.1)
         words += 1
         if words % phrase_len == 0:
-            t += rng.uniform(0.3, 0.8)
+            t += rng.uniform(0.2, 0.6)
     # levels from the active parts only: fricative peaks ~15 dB under vowel peaks
     v_peak = np.percentile(np.abs(voiced), 99.9) + 1e-12
     f_peak = np.percentile(np.abs(fric), 99.9) + 1e-12
@@ -424,10 +425,10 @@ def _piano_note(fs, f, length, release_at, bright):
 
 def piano(rng, fs, n):
     """Piano chords: a progression of triads (I, IV, V, vi, ii, iii of a random major
-    key, root MIDI 48-57) with a bass note an octave down, one chord every 1.2-2.4 s,
+    key, root MIDI 57-66) with a bass note an octave down, one chord every 1.2-2.4 s,
     notes spread by 0-40 ms (slightly rolled)."""
-    root = int(rng.integers(48, 58))
-    bright = rng.uniform(1.0, 1.5)
+    root = int(rng.integers(57, 67))
+    bright = rng.uniform(0.8, 1.2)
     x, t, first = np.zeros(n), rng.uniform(0.0, 0.3), True
     while t < n / fs:
         gap = rng.uniform(1.2, 2.4)
@@ -524,7 +525,7 @@ def applause(rng, fs, n):
 def drill(rng, fs, n):
     """Electric drill: bursts of 1-3 s with 0.5-1.5 s pauses; the motor frequency f
     (120-260 Hz) spins up over 0.2 s and down over 0.3 s; sawtooth-like harmonics
-    (1/h) up to 6 kHz plus gear whine (noise band 2-5 kHz, 30 %)."""
+    (1/h) up to 6 kHz with those near 2.5-4 kHz raised, plus gear noise (2-5 kHz)."""
     f_top = rng.uniform(120, 260)
     speed = np.zeros(n)
     t = rng.uniform(0.1, 0.4)
@@ -537,8 +538,10 @@ def drill(rng, fs, n):
         t += d + 0.3 + rng.uniform(0.5, 1.5)
     f = f_top * (0.3 + 0.7 * speed) * (1 + 0.01 * _smooth(rng, n, fs, 5.0))
     ph = TWO_PI * np.cumsum(f) / fs
-    hmax = int(min(6000.0, 0.45 * fs) // f_top)
-    x = _harmonics(ph, 1.0 / np.arange(1, hmax + 1))
+    h = np.arange(1, int(min(6000.0, 0.45 * fs) // f_top) + 1)
+    # the motor's whine: harmonics near f_w (2.5-4 kHz) raised, as by a housing resonance
+    f_w = rng.uniform(2500, 4000)
+    x = _harmonics(ph, 1.0 / h + 0.4 * np.exp(-(((h * f_top - f_w) / 700.0) ** 2)))
     x = x + 0.3 * _filt(rng.standard_normal(n), fs, "bandpass", (2000, 5000))
     return x * speed ** 1.5
 

@@ -13,9 +13,10 @@ Read it back with ``read_audiocaps(out_dir/"train.csv", audio_dir=out_dir/"audio
 Determinism: a clip's sound comes from a numpy Generator seeded with
 ``SeedSequence([seed, crc32(type name), split index, clip index])``; its file format
 (rate, channels, length, subtype) is a fixed function of its position in the corpus;
-the CSV row order and caption ids come from a Generator seeded with ``[seed, 0]``. WAV
-and CSV writing add no timestamps, so the same ``seed`` and ``clips_per_type`` give
-byte-identical files on the same platform and library versions.
+the CSV row order and caption ids come from a Generator seeded with ``[seed, 0]``. The
+time stamp libsndfile puts in float WAVs is zeroed, so the same ``seed`` and
+``clips_per_type`` give byte-identical files (on the same platform and library
+versions: numpy's elementary functions may differ in the last bit elsewhere).
 
 The file formats vary on purpose, to exercise the audio-loading stage: most clips are
 10 s, 24 kHz, mono, PCM_16; some are 16 or 44.1 kHz, stereo, 4-9 s or 12 s long, or
@@ -29,6 +30,7 @@ import hashlib
 import io
 import json
 import os
+import textwrap
 import zlib
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -152,10 +154,35 @@ def render_clip(spec: ClipSpec, seed: int, types=SOUND_TYPES) -> np.ndarray:
     return y.astype(np.float32)
 
 
+def _zero_peak_timestamp(path: Path) -> None:
+    """Zero the time stamp of a WAV file's PEAK chunk, if it has one.
+
+    libsndfile adds a PEAK chunk (version u32, time stamp u32, then per-channel peaks)
+    to float WAV files, stamped with the wall-clock time of writing; zeroing it makes
+    the file a pure function of its samples. Walks the RIFF chunk list: 4-byte id,
+    u32 little-endian size, data padded to an even length.
+    """
+    with open(path, "r+b") as f:
+        head = f.read(12)
+        if head[:4] != b"RIFF" or head[8:12] != b"WAVE":
+            return
+        while True:
+            chunk = f.read(8)
+            if len(chunk) < 8:
+                return
+            size = int.from_bytes(chunk[4:], "little")
+            if chunk[:4] == b"PEAK" and size >= 8:
+                f.seek(4, os.SEEK_CUR)
+                f.write(b"\0\0\0\0")
+                return
+            f.seek(size + (size & 1), os.SEEK_CUR)
+
+
 def _write_wav(path: Path, audio: np.ndarray, fmt: ClipFormat) -> None:
-    """Write atomically (temporary name, then rename)."""
+    """Write atomically (temporary name, then rename) and reproducibly."""
     tmp = path.with_name(path.name + ".part")
     sf.write(tmp, audio, fmt.fs, subtype=fmt.subtype, format="WAV")
+    _zero_peak_timestamp(tmp)
     os.replace(tmp, path)
 
 
@@ -196,16 +223,18 @@ def _readme(seed, clips_per_type, specs, types) -> str:
         "  clips.json                     per clip: sound type, split, captions, format",
         "",
         f"Clips: train {counts['train']}, val {counts['val']}, test {counts['test']}.",
-        f"Sound types ({len(types)}): " + ", ".join(
-            f"{t.name} ({t.temporal})" for t in types) + ".",
+        *textwrap.wrap(f"Sound types ({len(types)}): " + ", ".join(
+            f"{t.name} ({t.temporal})" for t in types) + ".", 79),
         "",
         "File formats vary on purpose, to exercise audio loading: most clips are 10 s,",
         "24 kHz, mono, 16-bit PCM; some are 16 kHz or 44.1 kHz, stereo, 4-9 s or 12 s",
         "long, or 32-bit float. Peaks are 0.3-0.9 full scale, never clipped.",
         "",
         "Read it with tsel_data.manifests.read_audiocaps(DIR/'train.csv',",
-        "audio_dir=DIR/'audio'), or rebuild it, byte for byte, with",
-        f"`tsel corpus synth --out DIR --seed {seed}`.",
+        "audio_dir=DIR/'audio'). Rebuild it, byte for byte, with",
+        f"tsel_data.demo.synth_corpus(DIR, seed={seed}, "
+        f"clips_per_type={tuple(clips_per_type)});",
+        "`tsel corpus synth --out DIR` makes the default corpus (seed 0, (4, 1, 1)).",
         "",
     ]
     return "\n".join(lines)
