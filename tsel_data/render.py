@@ -97,7 +97,7 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
         elif s.path:
             knots = np.asarray(s.path, dtype=np.float64)
             rs = simulate_rirs(recipe.room, recipe.array, knots[:, 1:], fs, method=recipe.rir_method,
-                               seed=recipe.seed + 1 + k)
+                               seed=recipe.seed + 1 + k, one_source=True)
             rt60 = rs.rt60_measured if rt60 is None else rt60
             images[k] = render_moving(dry[k], rs.rirs, knots[:, 0], fs)[:, :n]
         elif s.bank is not None:

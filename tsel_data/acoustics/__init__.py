@@ -28,8 +28,13 @@ class RirSet:
     rt60_measured: float | None = None
 
 
-def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: int = 0) -> RirSet:
-    """RIRs [S, C, L] from room-frame ``points`` [S, 3] to ``array``'s channels."""
+def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: int = 0,
+                  one_source: bool = False) -> RirSet:
+    """RIRs [S, C, L] from room-frame ``points`` [S, 3] to ``array``'s channels.
+
+    one_source: the points are the knots of one moving source (the stochastic late tail
+    is then one realisation shared by all knots).
+    """
     points = np.atleast_2d(np.asarray(points, dtype=np.float64))
     if method == "pyroomacoustics":
         from .pyroom import pyroom_rirs
@@ -38,5 +43,5 @@ def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: in
     if method in ("ism", "hybrid"):
         from .shoebox import shoebox_rirs
 
-        return shoebox_rirs(room, array, points, fs, method=method, seed=seed)
+        return shoebox_rirs(room, array, points, fs, method=method, seed=seed, one_source=one_source)
     raise ValueError(f"unknown RIR method {method!r}; expected one of {RIR_METHODS}")

@@ -52,6 +52,7 @@ def shoebox_rirs(
     max_order: int | None = None,
     transition: float | None = None,
     length: float | None = None,
+    one_source: bool = False,
 ) -> RirSet:
     """RIRs from room-frame ``points`` [S, 3] (m) to the channels of ``array``.
 
@@ -61,7 +62,9 @@ def shoebox_rirs(
     max_order: keep image sources with at most this many reflections (0 = free field);
     a finite order also drops the hybrid tail. transition: hybrid transition time (s),
     default max(80 ms, latest direct path + 20 ms). length: RIR length (s), default the
-    latest direct path + rt60 (the decay has reached about -60 dB).
+    latest direct path + rt60 (the decay has reached about -60 dB). one_source: the
+    points are knots of one moving source, so they share one tail realisation
+    (independent tails, crossfaded between knots, would dip 3 dB at every midpoint).
 
     Returns a :class:`RirSet` with float32 rirs [S, C, L] and ``rt60_measured`` = T30 of
     point 0, channel 0 (omni / W), or None when the response is too short to measure.
@@ -116,7 +119,8 @@ def shoebox_rirs(
         rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), grid_to_signal(grid), axis=-1)
 
     if with_tail:
-        rirs += _late_tail(np.random.default_rng(seed), dims, a, rt60, mics, foa, fs, n_len, t_mix, len(points))
+        n_tails = 1 if one_source else len(points)
+        rirs += _late_tail(np.random.default_rng(seed), dims, a, rt60, mics, foa, fs, n_len, t_mix, n_tails)
     measured = t30(rirs[0, 0], fs) if max_order != 0 else float("nan")
     return RirSet(rirs, None if np.isnan(measured) else measured)
 

@@ -73,8 +73,13 @@ def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int
                 p_arr = sph_to_cart(az, 0.0, r) + np.array([0.0, 0.0, dz])
                 rings.append((f"r{di}h{hi}", r, dz))
                 pts.append(p_arr)
-        p_arr = np.concatenate(pts)
-        rirs = simulate_rirs(room, array, array_to_room(p_arr, array.centre, array.yaw), fs, method=method, seed=int(rng.integers(2**31))).rirs
+        # one call per ring: a ring is one source's path, so its knots share one late-tail
+        # realisation (independent tails would dip 3 dB between crossfaded knots)
+        seeds = rng.integers(2**31, size=len(pts))
+        ring_rirs = [simulate_rirs(room, array, array_to_room(p, array.centre, array.yaw), fs, method=method,
+                                   seed=int(sd), one_source=True).rirs for p, sd in zip(pts, seeds)]
+        length = max(r.shape[-1] for r in ring_rirs)
+        rirs = np.concatenate([np.pad(r, ((0, 0), (0, 0), (0, length - r.shape[-1]))) for r in ring_rirs])
         if rir_seconds:
             rirs = rirs[:, :, : int(round(rir_seconds * fs))]
         name = f"sim{i + 1:02d}"
