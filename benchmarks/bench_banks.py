@@ -52,7 +52,7 @@ def tau_shaped_bank(path, L=7200, n=360, seed=0):
 
 def scene(bank, room, rng, moving, signals, clock=None):
     """One bank-based scene: per source read its RIRs, render, mix. ``clock`` (a dict)
-    accumulates process time per stage: read, render, mix."""
+    accumulates process time per stage: read (sampling the walk + bank.read), render, mix."""
     clock = {} if clock is None else clock
     tick = time.process_time
     out = None
@@ -207,9 +207,10 @@ def main():
             t_bf = time.process_time() - t0
             ours = render_moving(x[:n], sub_r, sub_t, FS)
             ref = stft_reference(x[:n], sub_r, sub_t, FS)
-            print(f"accuracy vs brute-force sample-by-sample convolution, trajectory {w_tid} (knots "
-                  f"{np.median(np.diff(sub_t)) * FS:.1f} samples apart; {args.brute_seconds:g} s, {t_bf:.1f} s to compute): "
-                  f"ours {snr_db(bf, ours):.1f} dB SNR (goal >= 60), STFT-domain reference {snr_db(bf[:, :n], ref):.1f} dB")
+            spacing = np.median(np.diff(sub_t)) * FS
+            print(f"accuracy vs brute-force sample-by-sample convolution, trajectory {w_tid} (knots {spacing:.1f} "
+                  f"samples apart; {args.brute_seconds:g} s, {t_bf:.1f} s to compute): ours {snr_db(bf, ours):.1f} dB SNR "
+                  f"(goal >= 60), STFT-domain reference {snr_db(bf[:, :n], ref):.1f} dB")
         same = np.repeat(rirs[:1], len(rirs), axis=0)
         y_static = render_static(x, rirs[0])
         err = np.max(np.abs(render_moving(x, same, times, FS) - y_static)) / np.max(np.abs(y_static))

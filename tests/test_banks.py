@@ -36,8 +36,17 @@ class ReadLog:
             self.calls.append((ds.name, _rows(source_sel, ds)))
             return direct(ds, dest, source_sel, dest_sel)
 
+        from tsel_data.banks import _h5
+
+        chunk = _h5.read_chunk
+
+        def spy_chunk(ds, row):
+            self.calls.append((ds.name, [row]))
+            return chunk(ds, row)
+
         monkeypatch.setattr(h5py.Dataset, "__getitem__", spy_get)
         monkeypatch.setattr(h5py.Dataset, "read_direct", spy_direct)
+        monkeypatch.setattr(_h5, "read_chunk", spy_chunk)
 
     def data_reads(self):
         """{dataset name: sorted rows read} for RIR datasets."""

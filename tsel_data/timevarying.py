@@ -21,22 +21,21 @@ of knot positions, so the labelled path is the rendered one.
 
 Implementation: uniformly partitioned overlap-add convolution (a frequency-domain delay
 line, e.g. F. Wefers, *Partitioned convolution algorithms for real-time auralization*,
-2015), with the crossfade applied to the input. Knot k's input z_k = w_k·x lives on
-samples [e_{k-1}, e_{k+1}), e_k = ⌈τ_k·fs⌉, and knots two apart never overlap, so two
-signals hold every z_k: z_even = x·Σ_{k even} w_k (the linear interpolation of 1, 0, 1,
-0, ... between knots) and x - z_even. The signal is cut into blocks of B samples on a
-grid aligned with a knot boundary, each RIR into P = ⌈L/B⌉ partitions of B samples;
-with N-point real FFTs (N ≥ 2B - 1),
+2015), with the crossfade applied to the input: knot k's input w_k·x lives on samples
+[e_{k-1}, e_{k+1}), e_k = ⌈τ_k·fs⌉. The signal is cut into blocks of B samples on a grid
+aligned with a knot boundary, each RIR into P = ⌈L/B⌉ partitions of B samples; with
+N-point real FFTs (N ≥ 2B - 1),
 
     Y_m = Σ_j Σ_{k with input in block m-j} X_{m-j,k} · H_{k,j},    y = Σ_m irfft(Y_m) placed at m·B,
 
-X_{m,k} the spectrum of z_k on block m, H_{k,j} of partition j of h_k. Knots are taken
+X_{m,k} the spectrum of w_k·x on block m, H_{k,j} of partition j of h_k. Knots are taken
 a few at a time so their spectra stay in cache. With B one knot interval (the bank walks'
 0.1 s), a block holds two knots, each RIR is transformed once (P·C rows of N = 2B), and
 each output block costs C inverse transforms; per call, B is the candidate with the least
-estimated time (:func:`_plan`). Measured here, for 10 s, 4 channels, 7200-sample RIRs
-and 105 knots: ~25-30 ms, of which ~2/3 FFTs (half of it the RIRs), ~1/5 the
-multiply-adds; 1.8x faster than transforming each knot's whole stretch at N = 12000.
+estimated time (:func:`_plan`). For 10 s, 4 channels, 7200-sample RIRs and 105 knots
+(benchmarks/bench_banks.py) over half the time is FFTs, most of it the RIR partitions,
+and a fifth the multiply-adds. Large arrays are allocated once per call: fresh pages
+cost ~0.4 ms per MB here.
 """
 from __future__ import annotations
 
@@ -44,10 +43,12 @@ import numpy as np
 import scipy.fft as sfft
 
 _GROUP_BYTES = 2 << 20  # RIR spectra of one group of knots: about one core's L2
+_HAT = np.array([0.0, 1.0, 0.0])  # a knot's weight at its left neighbour, itself, its right neighbour
 
 
 def render_static(signal, rir) -> np.ndarray:
-    """Plain convolution, exact: signal [T] * rir [C, L] -> float32 [C, T + L - 1].
+    """Plain convolution, exact: signal [T] * rir [C, L] -> float32 [C, T + L - 1]
+    (rows may be strided: a view into the overlap-add buffer, to save a copy).
 
     Overlap-add of N-point real FFTs (N = 2^15, or the next power of two >= 2L, or one
     transform when the whole output fits), blocks of B = N - L + 1 samples, all blocks and
@@ -77,11 +78,11 @@ def render_static(signal, rir) -> np.ndarray:
     hp[:, :L] = h
     y = sfft.irfft(sfft.rfft(hp)[:, None, :] * sfft.rfft(xp)[None], N)  # [C, nb, N]
     if nb == 1:
-        return np.ascontiguousarray(y[:, 0, :n_out])
+        return y[:, 0, :n_out]
     out = np.zeros((C, nb + 1, B), dtype=np.float32)
     out[:, :nb] += y[:, :, :B]
     out[:, 1:, : N - B] += y[:, :, B:]
-    return np.ascontiguousarray(out.reshape(C, -1)[:, :n_out])
+    return out.reshape(C, -1)[:, :n_out]
 
 
 def knot_weights(times, fs: float, n: np.ndarray, k: np.ndarray) -> np.ndarray:
@@ -104,7 +105,8 @@ def knot_weights(times, fs: float, n: np.ndarray, k: np.ndarray) -> np.ndarray:
 
 
 def render_moving(signal, rirs, times, fs: float) -> np.ndarray:
-    """Render a moving source: float32 [C, T + L - 1].
+    """Render a moving source: float32 [C, T + L - 1] (rows may be strided, as in
+    :func:`render_static`).
 
     signal: [T] dry mono signal. rirs: [K, C, L] knot RIRs. times: [K] seconds at which
     each RIR applies fully, strictly increasing (may lie outside the clip). fs: Hz.
@@ -126,11 +128,7 @@ def render_moving(signal, rirs, times, fs: float) -> np.ndarray:
     e = np.empty(K + 1, dtype=np.int64)
     e[0], e[K] = 0, T
     e[1:K] = np.clip(np.ceil(p[1:]), 0, T)
-    # Σ_{k even} w_k: the linear interpolation of 1, 0, 1, 0, ... between the knots
-    # (constant outside them). On the support of an even knot it is that knot's weight.
-    w_even = np.interp(np.arange(T, dtype=np.float64), p, (np.arange(K) % 2 == 0).astype(np.float64))
-    z0 = x * w_even.astype(np.float32)
-    return _partitioned(x, z0, e, h)
+    return _partitioned(x, p, e, h)
 
 
 def _grid_origin(e: np.ndarray, T: int, B: int) -> int:
@@ -148,7 +146,7 @@ def _pairs_per_block(e: np.ndarray, T: int, B: int) -> tuple[int, int]:
     start = o + np.arange(nb, dtype=np.int64) * B
     first = np.searchsorted(e, np.maximum(start, 0), "right") - 1
     last = np.searchsorted(e, np.minimum(start + B, T) - 1, "right") - 1
-    # block m holds intervals first..last: knot i gets x_b, knot i+1 gets x_a of interval i
+    # block m holds intervals first..last; interval i feeds knots i and i+1
     return nb, int((np.minimum(last + 1, K - 1) - first + 1).sum())
 
 
@@ -194,12 +192,11 @@ def _plan(e: np.ndarray, C: int, L: int, T: int) -> tuple[int, int, int]:
     return best[1:]
 
 
-def _partitioned(x: np.ndarray, z0: np.ndarray, e: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Σ_k (z_k * h_k): float32 [C, T + L - 1], where z_k = w_k·x is zero outside [e_{k-1}, e_{k+1}).
+def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Σ_k ((w_k·x) * h_k): float32 [C, T + L - 1]; w_k·x is zero outside [e_{k-1}, e_{k+1}).
 
-    x: float32 [T]. z0: float32 [T], equal to z_k on the support of every even knot k,
-    so x - z0 is z_k for every odd k (neighbouring knots overlap; knots two apart do not).
-    e: int [K + 1] interval starts (e_0 = 0, e_K = T). h: [K, C, L].
+    x: float32 [T]. p: float64 [K] knot positions (samples). e: int [K + 1] interval
+    starts (e_0 = 0, e_K = T). h: [K, C, L].
     """
     K, C, L = h.shape
     T = len(x)
@@ -207,7 +204,6 @@ def _partitioned(x: np.ndarray, z0: np.ndarray, e: np.ndarray, h: np.ndarray) ->
     o = _grid_origin(e, T, B)
     nb, F = -(-(T - o) // B), N // 2 + 1
     q = -(-N // B)  # output blocks touched by one frame
-    z = (z0, x - z0)
     # Knot k has input on samples [lo_k, hi_k) = [e_{k-1}, e_{k+1}) (from 0 for k = 0),
     # which fall in blocks b0..b1.
     lo, hi = np.r_[0, e[:-2]], e[1:]
@@ -247,7 +243,10 @@ def _partitioned(x: np.ndarray, z0: np.ndarray, e: np.ndarray, h: np.ndarray) ->
             s0 = r * B - (o + int(b0[t]) * B)  # flat index of sample 0 for this knot's rows
             u, v = s0 + int(lo[k]), s0 + int(hi[k])
             flat[r * B : u] = 0
-            flat[u:v] = z[k % 2][lo[k] : hi[k]]
+            # w_k: 1 at knot k, 0 at its neighbours, held constant beyond the end knots
+            hat = _HAT[int(k == 0) : 3 - int(k == K - 1)]
+            wk = np.interp(np.arange(lo[k], hi[k], dtype=np.float64), p[max(k - 1, 0) : k + 2], hat)
+            np.multiply(x[lo[k] : hi[k]], wk, out=flat[u:v], casting="unsafe")
             flat[v : (r + n) * B] = 0
             r += n
         flat[r * B :] = 0
@@ -274,7 +273,7 @@ def _partitioned(x: np.ndarray, z0: np.ndarray, e: np.ndarray, h: np.ndarray) ->
             acc[:keep] = acc[done : done + keep]
             acc[keep:used] = 0
             a0, used = a0 + done, keep
-    return np.ascontiguousarray(out.reshape(C, -1)[:, -o : -o + T + L - 1])
+    return out.reshape(C, -1)[:, -o : -o + T + L - 1]
 
 
 def interpolate_positions(times, positions, t) -> np.ndarray:

@@ -55,6 +55,12 @@ def read_rows(ds, rows) -> "np.ndarray":
 
     rows = np.asarray(rows, dtype=np.int64)
     out = np.empty((len(rows),) + tuple(ds.shape[1:]), dtype=np.float32 if ds.dtype.kind == "f" else ds.dtype)
+    if _one_raw_chunk_per_row(ds):
+        # our own banks: one unfiltered float32 chunk per RIR, read as bytes (3x faster
+        # than a hyperslab read per run, measured on walks of ~100 knots)
+        for i, r in enumerate(rows):
+            out[i] = np.frombuffer(read_chunk(ds, int(r)), np.float32).reshape(ds.shape[1:])
+        return out
     cuts = np.nonzero(np.diff(rows) != 1)[0] + 1
     start = 0
     for run in np.split(rows, cuts):
@@ -65,3 +71,13 @@ def read_rows(ds, rows) -> "np.ndarray":
             out[start : start + n] = ds[a : a + n]
         start += n
     return out
+
+
+def read_chunk(ds, row: int) -> bytes:
+    """The raw bytes of row ``row``'s chunk (datasets with one unfiltered chunk per row)."""
+    return ds.id.read_direct_chunk((row,) + (0,) * (ds.ndim - 1))[1]
+
+
+def _one_raw_chunk_per_row(ds) -> bool:
+    return (ds.chunks == (1,) + tuple(ds.shape[1:]) and ds.dtype.str == "<f4"
+            and ds.id.get_create_plist().get_nfilters() == 0)
