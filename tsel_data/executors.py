@@ -16,9 +16,18 @@ EXECUTORS = ("local", "dask", "dask-local")
 
 
 def single_thread_env() -> None:
-    """One thread per worker: pyroomacoustics reads PRA_NUM_THREADS, BLAS its own variables."""
+    """One thread per worker.
+
+    The environment variables reach libraries loaded later (pyroomacoustics reads
+    PRA_NUM_THREADS); BLAS is already loaded by numpy, so its pool is limited at run
+    time. Measured here: OpenBLAS's second thread made rendering no faster but busy-waited
+    on the other core, so two workers ran no faster than one.
+    """
     for var in ("PRA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[var] = "1"
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
 
 
 class Runner:
