@@ -40,9 +40,9 @@ class ReadLog:
 
         chunk = _h5.read_chunk
 
-        def spy_chunk(ds, row):
+        def spy_chunk(ds, row, out):
             self.calls.append((ds.name, [row]))
-            return chunk(ds, row)
+            return chunk(ds, row, out)
 
         monkeypatch.setattr(h5py.Dataset, "__getitem__", spy_get)
         monkeypatch.setattr(h5py.Dataset, "read_direct", spy_direct)

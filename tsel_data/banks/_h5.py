@@ -58,8 +58,9 @@ def read_rows(ds, rows) -> "np.ndarray":
     if _one_raw_chunk_per_row(ds):
         # our own banks: one unfiltered float32 chunk per RIR, read as bytes (3x faster
         # than a hyperslab read per run, measured on walks of ~100 knots)
+        flat = out.reshape(len(rows), -1).view(np.uint8)
         for i, r in enumerate(rows):
-            out[i] = np.frombuffer(read_chunk(ds, int(r)), np.float32).reshape(ds.shape[1:])
+            read_chunk(ds, int(r), flat[i])
         return out
     cuts = np.nonzero(np.diff(rows) != 1)[0] + 1
     start = 0
@@ -73,9 +74,10 @@ def read_rows(ds, rows) -> "np.ndarray":
     return out
 
 
-def read_chunk(ds, row: int) -> bytes:
-    """The raw bytes of row ``row``'s chunk (datasets with one unfiltered chunk per row)."""
-    return ds.id.read_direct_chunk((row,) + (0,) * (ds.ndim - 1))[1]
+def read_chunk(ds, row: int, out) -> None:
+    """Read row ``row``'s raw chunk into the byte buffer ``out`` (datasets with one
+    unfiltered chunk per row; no intermediate copy)."""
+    ds.id.read_direct_chunk((row,) + (0,) * (ds.ndim - 1), out=out)
 
 
 def _one_raw_chunk_per_row(ds) -> bool:
