@@ -182,7 +182,7 @@ def finalize(out_dir: str) -> dict:
     import h5py
 
     cfg, plans = load_plan(out_dir)
-    splits: dict[str, dict] = {}
+    splits: dict[str, dict] = {split: {"scenes": 0, "shards": []} for split in plans}  # config order
     missing = []
     for task in shard_tasks(cfg, plans):
         h5_rel, json_rel = shard_names(task.split, task.shard)
@@ -198,14 +198,11 @@ def finalize(out_dir: str) -> dict:
                                f"delete it and run `tsel render` again")
         entry = {"file": h5_rel, "json": json_rel, "scenes": len(want), "sha256": sha256_file(h5_path),
                  "json_sha256": sha256_file(os.path.join(out_dir, json_rel))}
-        splits.setdefault(task.split, {"scenes": 0, "shards": []})
         splits[task.split]["scenes"] += len(want)
         splits[task.split]["shards"].append(entry)
     if missing:
         raise DatasetError(f"{len(missing)} shard(s) not rendered yet, e.g. {missing[0]}; "
                            f"run `tsel render {out_dir}` (or `tsel generate ... --resume`) first")
-    for split in plans:
-        splits.setdefault(split, {"scenes": 0, "shards": []})
     doc = {"tool": "tsel-data", "version": __version__, "format_version": FORMAT_VERSION,
            "conventions": CONVENTIONS, "config": cfg.to_dict(), "seed": cfg.seed, **shard_attrs(cfg),
            "splits": splits}
