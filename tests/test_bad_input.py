@@ -403,3 +403,19 @@ def test_a_good_bank_passes_and_its_scenes_are_planned(tmp_path, demo_corpus):
     rep = check_config(cfg)
     assert rep.ok, rep.messages()
     assert rep.facts["splits"]["train"]["planned"] == 3 and rep.facts["splits"]["val"]["planned"] == 2
+
+
+def test_clip_silent_in_the_part_a_scene_uses_is_a_bad_clip(tmp_path):
+    """Loud after 12 s, silent in the first 10 s a scene reads: caught before planning."""
+    import numpy as np
+    import soundfile as sf
+
+    from tsel_data.audio import check_clip
+
+    x = np.zeros(20 * 16000, dtype=np.float32)
+    x[12 * 16000:] = 0.5 * np.sin(np.arange(8 * 16000) / 5.0)
+    p = tmp_path / "late.wav"
+    sf.write(p, x, 16000)
+    assert check_clip("c", str(p), "full", 1.0, 8).problem is None  # the whole file is not silent
+    problem = check_clip("c", str(p), "full", 1.0, 8, offset=0.0, duration=10.0).problem
+    assert "silent in the 10 s a scene uses" in problem

@@ -310,6 +310,7 @@ def test_unwritable_output_is_a_clear_error_and_leaves_nothing(demo_corpus, tmp_
 @pytest.mark.parametrize("stage", ["json", "h5"])
 def test_full_disk_is_a_clear_error_and_resume_completes(cfg, dataset, tmp_path, monkeypatch, stage):
     out = str(tmp_path / "full")
+    plan_dataset(cfg, out)  # the plan is written first; the disk fills while shards are written
     calls = {"n": 0}
 
     def no_space(*a, **k):
@@ -337,7 +338,7 @@ def test_full_disk_is_a_clear_error_and_resume_completes(cfg, dataset, tmp_path,
         monkeypatch.setattr(writer, "_stack_padded", stack)
         failing = "train/shard-00001.h5"
     with pytest.raises(DatasetError) as ei:
-        generate(cfg, out, workers=1, progress=False)
+        generate(cfg, out, workers=1, progress=False, resume=True)
     msg = str(ei.value)
     assert msg.startswith(f"cannot write {failing}: disk full; no space left on the device") and "--resume" in msg
     assert "\n" not in msg

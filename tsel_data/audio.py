@@ -104,8 +104,13 @@ class ClipCheck:
 
 
 def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_channels: int,
-               offset: float = 0.0) -> ClipCheck:
-    """Check a clip at ``level`` = exists | header | full (decode everything: NaN, silence)."""
+               offset: float = 0.0, duration: float | None = None) -> ClipCheck:
+    """Check a clip at ``level`` = exists | header | full (decode: NaN, silence).
+
+    ``full`` judges silence on the part a scene uses, ``offset`` .. ``offset + duration``
+    (the whole file if ``duration`` is None): a clip silent there would be an inaudible
+    source whose caption still describes it.
+    """
     if not os.path.isfile(path):
         return ClipCheck(clip_id, f"audio file not found: {path}")
     if level == "exists":
@@ -132,8 +137,11 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
         return ClipCheck(clip_id, f"unreadable audio {path}: {str(e).splitlines()[0]}", **base)
     if not np.all(np.isfinite(x)):
         return ClipCheck(clip_id, f"{path} contains NaN or Inf samples", **base)
-    if float(np.max(np.abs(x))) < 1e-5:
-        return ClipCheck(clip_id, f"{path} is silent (peak below -100 dBFS)", **base)
+    sr = info.samplerate
+    used = x[int(round(offset * sr)):None if duration is None else int(round((offset + duration) * sr))]
+    if used.size == 0 or float(np.max(np.abs(used))) < 1e-5:
+        span = "" if duration is None else f" in the {duration:g} s a scene uses"
+        return ClipCheck(clip_id, f"{path} is silent{span} (peak below -100 dBFS)", **base)
     return ClipCheck(clip_id, None, **base)
 
 

@@ -116,7 +116,8 @@ def check_clips(clips: list[Clip], cfg: Config, workers: int = 1) -> list[ClipCh
     level = cfg.corpus.check
     if level == "none":
         return [ClipCheck(c.id, None) for c in clips]
-    args = [(c.id, c.audio, level, cfg.corpus.min_duration, cfg.corpus.max_channels, c.offset) for c in clips]
+    args = [(c.id, c.audio, level, cfg.corpus.min_duration, cfg.corpus.max_channels, c.offset, cfg.audio.duration)
+            for c in clips]
     if workers > 1 and level == "full" and len(clips) > 64:
         with ProcessPoolExecutor(workers) as ex:
             return list(ex.map(_check, args, chunksize=64))
@@ -128,9 +129,7 @@ def _check(a) -> ClipCheck:
 
 
 def write_bad_clips(path: str, bad: list[dict]) -> None:
-    tmp = path + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        for b in bad:
-            f.write(json.dumps(b, ensure_ascii=False) + "\n")
-    os.replace(tmp, path)
+    from .store.writer import atomic_write
+
+    atomic_write(path, "".join(json.dumps(b, ensure_ascii=False) + "\n" for b in bad).encode("utf-8"))
 

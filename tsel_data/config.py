@@ -11,7 +11,7 @@ from __future__ import annotations
 import difflib
 import os
 import tomllib
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from importlib import resources
 from typing import Any
 
@@ -63,7 +63,7 @@ class SceneConfig:
     caption_similarity: float = 0.5  # max word-overlap (Jaccard) between query and other sources' captions
     motion: str = "static"  # static | moving | mixed
     moving_fraction: float = 0.5
-    speed: Dist = _d(["choose", [10.0, 20.0, 40.0]])  # degrees/s for bank paths, m/s*... see docs
+    speed: Dist = _d(["choose", [10.0, 20.0, 40.0]])  # degrees/s, bank walks and simulated arcs
 
 
 @dataclass(frozen=True)
@@ -150,6 +150,12 @@ def load_config(preset: str | None = None, path: str | None = None, overrides: l
         if not os.path.isfile(path):
             raise ConfigError(f"config file not found: {path}")
         user = _read_toml(path, path)
+        from .check import check_raw_config
+
+        check_raw_config(user, path)
+        for sec, key in (("corpus", "dir"), ("room", "bank")):
+            if not isinstance(user.get(sec, {}), dict) or not isinstance(user.get(sec, {}).get(key, ""), str):
+                raise ConfigError(f"{path}: [{sec}] must be a table and {sec}.{key} a string path")
         base_dir = os.path.dirname(os.path.abspath(path))
         cdir = user.get("corpus", {}).get("dir")
         if cdir and not cdir.startswith("builtin:"):
@@ -230,8 +236,14 @@ def validate_config(cfg: Config, where: str = "config", smallest_room: bool = Tr
     nb = cfg.scene.interferers.bounds
     if nb is None or nb[0] < 1:
         raise ConfigError(f"{where}: scene.interferers must be >= 1 (a scene holds at least two sources)")
+    if cfg.scene.min_separation * (nb[1] + 1) > 360:
+        raise ConfigError(f"{where}: scene.min_separation {cfg.scene.min_separation}° is impossible with "
+                          f"{int(nb[1]) + 1} directional sources")
     if cfg.room.bank:
         return
+    if cfg.scene.format == "foa" and cfg.room.rir_method == "pyroomacoustics":
+        raise ConfigError(f"{where}: room.rir_method = \"pyroomacoustics\" renders omni capsules only; "
+                          f"use \"hybrid\" or \"ism\" for scene.format = \"foa\"")
     _check_geometry(cfg, where)
     if smallest_room:
         from .check import geometry_problems
@@ -266,13 +278,6 @@ def _check_geometry(cfg: Config, where: str) -> None:
     if dmin > reach:
         raise ConfigError(f"{where}: sources.distance minimum {dmin} m cannot fit in the largest room "
                           f"(at most {reach:.2f} m from the array); lower it or enlarge the room")
-    if cfg.scene.min_separation * (cfg.scene.interferers.bounds[1] + 1) > 360:
-        raise ConfigError(f"{where}: scene.min_separation {cfg.scene.min_separation}° is impossible with "
-                          f"{int(cfg.scene.interferers.bounds[1]) + 1} directional sources")
-
-
-def with_overrides(cfg: Config, **sections) -> Config:
-    return replace(cfg, **sections)
 
 
 # --- helpers -----------------------------------------------------------------------------

@@ -44,6 +44,7 @@ class Runner:
         self._cluster = None
 
     def __enter__(self) -> "Runner":
+        self._limits = None
         if self.executor == "local" and self.workers > 1:
             self._pool = ProcessPoolExecutor(self.workers, initializer=single_thread_env)
         elif self.executor.startswith("dask"):
@@ -62,10 +63,15 @@ class Runner:
                     raise TselError(f"cannot reach the dask scheduler at {self.scheduler}: {e}") from None
             self._client.run(single_thread_env)
         else:
-            single_thread_env()
+            # in this process: limit BLAS for the run only, then give the caller its threads back
+            from threadpoolctl import threadpool_limits
+
+            self._limits = threadpool_limits(1)
         return self
 
     def __exit__(self, *exc) -> None:
+        if self._limits is not None:
+            self._limits.restore_original_limits()
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
         if self._client is not None:

@@ -24,7 +24,7 @@ from .errors import DatasetError
 from .executors import Runner
 from .plan import CatalogView, plan_split_json, resolve_bank
 from .recipe import SceneRecipe, read_plan
-from .store.writer import FORMAT_VERSION, remove_stale_tmp, shard_names, sha256_file, write_error, write_shard
+from .store.writer import FORMAT_VERSION, atomic_write, remove_stale_tmp, shard_names, sha256_file, write_error, write_shard
 
 PLAN_DIR = "plan"
 CONFIG_FILE = "plan/config.json"
@@ -67,7 +67,7 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
     try:
         os.makedirs(os.path.join(out_dir, PLAN_DIR), exist_ok=True)
     except OSError as e:
-        raise write_error(f"cannot create {out_dir}", e, out_dir) from None
+        raise write_error(out_dir, e, out_dir) from None
     catalog = build_catalog(cfg, out_dir, workers=workers)
     bank_path = resolve_bank(cfg, out_dir)
     write_bad_clips(os.path.join(out_dir, "bad_clips.jsonl"), catalog.bad)
@@ -86,8 +86,11 @@ def load_config_json(out_dir: str) -> dict:
     path = os.path.join(out_dir, CONFIG_FILE)
     if not os.path.isfile(path):
         raise DatasetError(f"{out_dir} has no plan ({CONFIG_FILE} missing); run `tsel plan` or `tsel generate` first")
-    with open(path, encoding="utf-8") as f:
-        return json.load(f)
+    try:
+        with open(path, encoding="utf-8") as f:
+            return json.load(f)
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise DatasetError(f"{path} is damaged ({e}); plan again into a new --out") from None
 
 
 def load_plan(out_dir: str) -> tuple[Config, dict[str, list[SceneRecipe]]]:
@@ -242,15 +245,9 @@ def _write_json(path: str, doc: dict) -> None:
 
 
 def _write_text(path: str, text: str) -> None:
-    """Atomic write (temporary name, then rename); a failed write is one clear line."""
+    """Atomic write (store.writer.atomic_write); a failed write is one clear line."""
     remove_stale_tmp(path)
-    tmp = f"{path}.tmp-{os.getpid()}"
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
+        atomic_write(path, text.encode("utf-8"))
     except OSError as e:
-        raise write_error(f"cannot write {os.path.basename(path)}", e, os.path.dirname(path)) from None
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+        raise write_error(os.path.basename(path), e, os.path.dirname(path)) from None

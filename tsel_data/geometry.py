@@ -100,6 +100,11 @@ def foa_gains(az, el) -> np.ndarray:
     return np.stack([np.ones_like(a), np.sin(a) * np.cos(e), np.sin(e), np.cos(a) * np.cos(e)], axis=-1)
 
 
+def frame_centres(n_frames: int, hop: float) -> np.ndarray:
+    """Label frame k covers [k·hop, (k+1)·hop) and is labelled at its centre (k + 0.5)·hop (s)."""
+    return (np.arange(n_frames) + 0.5) * hop
+
+
 def azimuth_difference(a, b):
     """Absolute angular difference in degrees, with wrap-around: in [0, 180]."""
     d = np.abs(wrap_azimuth(np.asarray(a) - np.asarray(b)))

@@ -16,6 +16,7 @@ from .captions import max_similarity, tokens
 from .clip import Clip
 from .config import Config
 from .errors import ConfigError, GeometryError, TselError
+from .geometry import frame_centres
 from .recipe import ArrayPose, Room, SceneRecipe, Source
 
 MAX_TRIES = 200
@@ -130,7 +131,7 @@ def _moves(cfg: Config, rng) -> bool:
 
 def _frame_centres(cfg: Config) -> np.ndarray:
     a = cfg.audio
-    return (np.arange(int(round(a.duration / a.label_hop))) + 0.5) * a.label_hop
+    return frame_centres(int(round(a.duration / a.label_hop)), a.label_hop)
 
 
 def _separated(az: np.ndarray, placed: list[np.ndarray], sc) -> bool:
@@ -201,7 +202,8 @@ def _arc(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, h: float):
     a = np.radians(az0 + yaw + direction * speed * t)
     x, y = centre[0] + r_h * np.cos(a), centre[1] + r_h * np.sin(a)
     m = cfg.sources.wall_margin
-    if x.min() < m or y.min() < m or x.max() > room.dims[0] - m or y.max() > room.dims[1] - m:
+    if (x.min() < m or y.min() < m or x.max() > room.dims[0] - m or y.max() > room.dims[1] - m
+            or not m <= h <= room.dims[2] - m):
         return None
     path = tuple((round(float(ti), 6), round(float(xi), 6), round(float(yi), 6), round(h, 6))
                  for ti, xi, yi in zip(t, x, y))
@@ -312,10 +314,6 @@ def split_rooms(cfg: Config, split: str, bank) -> list[str]:
         return list(bank.rooms)
     return [bank.resolve_room(r) for r in wanted]
 
-
-def _sep(a: float, b: float) -> float:
-    d = (a - b) % 360.0
-    return min(d, 360.0 - d)
 
 
 _WORKER_STATE: dict = {}

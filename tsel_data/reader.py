@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 
 from .errors import DatasetError
-from .geometry import azimuth_difference
+from .geometry import azimuth_difference, frame_centres
 
 LABEL_KEYS = ("azimuth", "elevation", "distance")
 
@@ -73,7 +73,7 @@ class Scene:
 
     def frame_times(self) -> np.ndarray:
         """Centre time (s) of each label frame, [F]."""
-        return (np.arange(self.n_frames) + 0.5) * self.label_hop
+        return frame_centres(self.n_frames, self.label_hop)
 
 
 class SceneDataset:

@@ -18,7 +18,6 @@ from .geometry import FORMATS, mic_positions, room_to_array
 Vec3 = tuple[float, float, float]
 
 SCENARIOS = ("two-directional", "directional+additive")
-SPATIAL = ("directional", "additive")
 
 
 @dataclass(frozen=True)

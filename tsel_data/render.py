@@ -16,7 +16,8 @@ from scipy import fft as sfft
 
 from .acoustics import simulate_rirs
 from .audio import active_rms, db, frame_activity, load_clip_cached
-from .geometry import CHANNEL_NAMES, cart_to_sph
+from .errors import AudioError
+from .geometry import CHANNEL_NAMES, cart_to_sph, frame_centres
 from .recipe import SceneRecipe, array_frame_position_at
 from .store.writer import RenderedScene
 from .timevarying import interpolate_positions, render_moving
@@ -58,7 +59,7 @@ def convolve(signals: np.ndarray, rirs: np.ndarray, n_out: int) -> np.ndarray:
 
 def frame_times(recipe: SceneRecipe) -> np.ndarray:
     """Label frame centres (s): (k + 0.5)·hop for k < round(duration / hop)."""
-    return (np.arange(recipe.n_frames) + 0.5) * recipe.label_hop
+    return frame_centres(recipe.n_frames, recipe.label_hop)
 
 
 def source_labels(recipe: SceneRecipe, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -131,8 +132,13 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
     target_rms = 10 ** (recipe.target_level_dbfs / 20)
     gains = np.zeros(len(images))
     for k, s in enumerate(recipe.sources):
+        if levels[k] <= 0:
+            # a silent source would leave a query describing nothing audible
+            raise AudioError(f"{recipe.scene_id}: source {k} ({s.clip_id}, {s.audio}) is silent in the "
+                             f"{recipe.duration:g} s the scene uses; set corpus.check = \"full\" so such clips "
+                             f"are found before planning, or remove it from the manifest")
         want = target_rms if k == 0 else target_rms * 10 ** (-s.tir_db / 20)
-        gains[k] = want / levels[k] if levels[k] > 0 else 0.0
+        gains[k] = want / levels[k]
     mix = np.tensordot(gains.astype(np.float32), images, axes=1)
     peak = float(np.max(np.abs(mix))) if mix.size else 0.0
     norm = PEAK_LIMIT / peak if peak > PEAK_LIMIT else 1.0
@@ -160,8 +166,8 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
              "bank": s.bank,
              "azimuth": _round(az[k]), "elevation": _round(el[k]), "distance": _round(dist[k], 4),
              "active": active[k].tolist(), "tir_db": s.tir_db,
-             "gain_db": round(db(gains[k] * norm), 3) if gains[k] > 0 else None,
-             "level_dbfs": round(db(levels[k] * gains[k] * norm), 3) if gains[k] > 0 else None}
+             "gain_db": round(db(gains[k] * norm), 3),
+             "level_dbfs": round(db(levels[k] * gains[k] * norm), 3)}
             for k, s in enumerate(recipe.sources)
         ],
         "levels": {"target_level_dbfs": recipe.target_level_dbfs, "peak": round(peak * norm, 6),
@@ -176,7 +182,8 @@ def _room_record(recipe: SceneRecipe, rt60_measured) -> dict:
     from .plan import open_bank_cached
 
     info = open_bank_cached(recipe.extra["bank"]).room_info(recipe.extra["bank_room"])
-    return {"name": recipe.extra["bank_room"], "bank": recipe.extra["bank"], "dims": info.get("dims"),
+    return {"name": recipe.extra["bank_room"], "bank": recipe.extra["bank"],
+            "dims": info.get("dims", info.get("dimensions")),
             "rt60": info.get("rt60"), "rt60_measured": None}
 
 

@@ -21,10 +21,19 @@ _PRA_LATENCY = (pra.constants.get("frac_delay_length") - 1) // 2
 def pyroom_rirs(room, array, points: np.ndarray, fs: int, seed: int = 0, max_order: int | None = None) -> RirSet:
     if array.format == "foa":
         raise ValueError("the pyroomacoustics method renders omni capsules only; use rir_method 'ism' or 'hybrid' for FOA")
-    pra.constants.set("c", SOUND_SPEED)
-    # pyroomacoustics draws from numpy's global generator (random ISM, ray tracing);
-    # seed it per task so forked workers do not share a stream.
+    pra.constants.set("c", SOUND_SPEED)  # pyroomacoustics' own default, stated
+    # pyroomacoustics draws from numpy's global generator (random ISM, ray tracing):
+    # seed it per task so forked workers do not share a stream, and give the caller's
+    # state back afterwards
+    state = np.random.get_state()
     np.random.seed(seed % 2**32)
+    try:
+        return _pyroom_rirs(room, array, points, fs, max_order)
+    finally:
+        np.random.set_state(state)
+
+
+def _pyroom_rirs(room, array, points: np.ndarray, fs: int, max_order: int | None) -> RirSet:
     e_abs, order = pra.inverse_sabine(room.rt60, list(room.dims))
     r = pra.ShoeBox(
         list(room.dims), fs=fs, materials=pra.Material(e_abs), max_order=order if max_order is None else max_order

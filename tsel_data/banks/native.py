@@ -155,7 +155,3 @@ def _fit(data: np.ndarray, C: int, L: int, where: str) -> np.ndarray:
     n = min(L, data.shape[2])
     out[:, :, :n] = data[:, :, :n]
     return out
-
-
-def channel_names_for(fmt: str) -> tuple:
-    return CHANNEL_NAMES[check_format(fmt)]

@@ -63,7 +63,7 @@ def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene
         os.makedirs(os.path.dirname(h5_path), exist_ok=True)
         remove_stale_tmp(json_path)
         remove_stale_tmp(h5_path)
-        _atomic_write(json_path, (json.dumps(_json_safe(doc), ensure_ascii=False, indent=1) + "\n").encode("utf-8"))
+        atomic_write(json_path, (json.dumps(_json_safe(doc), ensure_ascii=False, indent=1) + "\n").encode("utf-8"))
         what = h5_rel
         _atomic_write_h5(h5_path, scenes, n_src, {"split": split, "shard": shard, **attrs})
     except OSError as e:
@@ -77,7 +77,8 @@ def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene
     }
 
 
-def _atomic_write(path: str, data: bytes) -> None:
+def atomic_write(path: str, data: bytes) -> None:
+    """Write ``data`` to ``path`` whole or not at all: ``path.tmp-PID``, fsync, rename."""
     tmp = f"{path}.tmp-{os.getpid()}"
     try:
         with open(tmp, "wb") as f:
