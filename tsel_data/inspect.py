@@ -119,7 +119,7 @@ def source_tracks(scene: Scene) -> tuple[list[np.ndarray | None], np.ndarray, fl
     """
     arr = scene.record.get("array") or {}
     room = scene.record.get("room") or {}
-    if room.get("dims") and arr.get("centre") is not None:
+    if room.get("dims") and not room.get("bank") and arr.get("centre") is not None:
         centre, yaw = np.asarray(arr["centre"], dtype=np.float64), float(arr.get("yaw", 0.0))
     else:
         centre, yaw = np.zeros(3), 0.0
@@ -152,7 +152,8 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
     rec = scene.record
     srcs = rec.get("sources") or [{} for _ in range(scene.n_sources)]
     tracks, centre, yaw = source_tracks(scene)
-    dims = (rec.get("room") or {}).get("dims")
+    # bank scenes know their room's size but not where the array stood: array frame
+    dims = None if (rec.get("room") or {}).get("bank") else (rec.get("room") or {}).get("dims")
 
     # --- room from above ----------------------------------------------------------
     if dims:

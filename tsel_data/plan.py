@@ -77,7 +77,8 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     recipe = SceneRecipe(
         scene_id=f"{split}-{index:06d}", split=split, index=index, seed=int(rng.integers(2**31 - 1)),
         scenario=scenario, query=query, array=array, sources=tuple(sources), room=room,
-        fs=a.fs, duration=a.duration, label_hop=a.label_hop, rir_method=cfg.room.rir_method,
+        fs=a.fs, duration=a.duration, label_hop=a.label_hop,
+        rir_method="bank" if cat.bank_path else cfg.room.rir_method,
         target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db, extra=extra,
     )
     return recipe.validate(wall_margin=cfg.sources.wall_margin - 1e-6)
