@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import DatasetError, TselError
-from .geometry import azimuth_difference
+from .geometry import azimuth_difference, wrap_azimuth
 from .labels import decode_distribution
 from .reader import open_dataset
 
@@ -147,7 +147,7 @@ def circular_mean(az) -> float:
     """Circular mean of azimuths (deg) -> deg in [-180, 180)."""
     a = np.radians(np.asarray(az, dtype=np.float64))
     m = math.degrees(math.atan2(np.sin(a).mean(), np.cos(a).mean()))
-    return float((m + 180.0) % 360.0 - 180.0)
+    return float(wrap_azimuth(m))
 
 
 def scene_errors(pred: Prediction, azimuth: np.ndarray, active: np.ndarray, moving: bool) -> np.ndarray:

@@ -24,7 +24,7 @@ from .errors import DatasetError
 from .executors import Runner
 from .plan import CatalogView, plan_split_json, resolve_bank
 from .recipe import SceneRecipe, read_plan
-from .store.writer import FORMAT_VERSION, atomic_write, remove_stale_tmp, shard_names, sha256_file, write_error, write_shard
+from .store.writer import FORMAT_VERSION, atomic_write, remove_stale_tmp, shard_entry, shard_names, write_error, write_shard
 
 PLAN_DIR = "plan"
 CONFIG_FILE = "plan/config.json"
@@ -128,7 +128,9 @@ def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attr
     from .render import render_scene
 
     scenes = [render_scene(r) for r in recipes]
-    write_shard(out_dir, task.split, task.shard, scenes, attrs)
+    # write_shard's entry (with checksums) is not needed here: finalize makes it, also for
+    # shards other processes wrote
+    write_shard(out_dir, task.split, task.shard, scenes, attrs, checksums=False)
     return len(scenes)
 
 
@@ -188,7 +190,7 @@ def finalize(out_dir: str) -> dict:
     splits: dict[str, dict] = {split: {"scenes": 0, "shards": []} for split in plans}  # config order
     missing = []
     for task in shard_tasks(cfg, plans):
-        h5_rel, json_rel = shard_names(task.split, task.shard)
+        h5_rel = shard_names(task.split, task.shard)[0]
         h5_path = os.path.join(out_dir, h5_rel)
         if not shard_complete(out_dir, task):
             missing.append(h5_rel)
@@ -199,10 +201,8 @@ def finalize(out_dir: str) -> dict:
         if got != want:
             raise DatasetError(f"{h5_rel} does not hold the planned scenes {want[0]}..{want[-1]}; "
                                f"delete it and run `tsel render` again")
-        entry = {"file": h5_rel, "json": json_rel, "scenes": len(want), "sha256": sha256_file(h5_path),
-                 "json_sha256": sha256_file(os.path.join(out_dir, json_rel))}
         splits[task.split]["scenes"] += len(want)
-        splits[task.split]["shards"].append(entry)
+        splits[task.split]["shards"].append(shard_entry(out_dir, task.split, task.shard, len(want)))
     if missing:
         raise DatasetError(f"{len(missing)} shard(s) not rendered yet, e.g. {missing[0]}; "
                            f"run `tsel render {out_dir}` (or `tsel generate ... --resume`) first")

@@ -16,7 +16,7 @@ from .captions import max_similarity, tokens
 from .clip import Clip
 from .config import Config
 from .errors import ConfigError, GeometryError, TselError
-from .geometry import frame_centres
+from .geometry import frame_centres, wrap_azimuth
 from .recipe import ArrayPose, Room, SceneRecipe, Source
 
 MAX_TRIES = 200
@@ -143,7 +143,7 @@ def _separated(az: np.ndarray, placed: list[np.ndarray], sc) -> bool:
     another one (at 40°/s a 10 s walk goes all the way round) for the rest.
     """
     for p in placed:
-        d = np.abs((az - p + 180.0) % 360.0 - 180.0)
+        d = np.abs(wrap_azimuth(az - p))
         if np.mean(d >= sc.min_separation) < sc.separated_frames - 1e-9:
             return False
     return True

@@ -42,6 +42,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft as sfft
 
+from .geometry import wrap_azimuth
+
 _GROUP_BYTES = 2 << 20  # RIR spectra of one group of knots: about one core's L2
 _HAT = np.array([0.0, 1.0, 0.0])  # a knot's weight at its left neighbour, itself, its right neighbour
 
@@ -289,5 +291,5 @@ def interpolate_positions(times, positions, t) -> np.ndarray:
         return np.broadcast_to(pos[0], t.shape + (3,)).copy()
     az = np.degrees(np.unwrap(np.radians(pos[:, 0])))
     out = np.stack([np.interp(t, tau, az), np.interp(t, tau, pos[:, 1]), np.interp(t, tau, pos[:, 2])], axis=-1)
-    out[..., 0] = (out[..., 0] + 180.0) % 360.0 - 180.0
+    out[..., 0] = wrap_azimuth(out[..., 0])
     return out

@@ -24,12 +24,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .acoustics import SOUND_SPEED
 from .evaluate import circular_mean
 from .features import mic_pairs, stft
-from .geometry import azimuth_difference, sph_to_cart
+from .geometry import azimuth_difference, sph_to_cart, wrap_azimuth
 from .reader import list_splits, open_dataset
 
-SOUND_SPEED = 343.0
 _EPS = 1e-12
 
 
@@ -131,10 +131,6 @@ def _peaks(m: np.ndarray, k: int, min_sep: float) -> list[int]:
     return chosen
 
 
-def _wrap(a: float) -> float:
-    return float((a + 180.0) % 360.0 - 180.0)
-
-
 def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: int = 5, **map_kw) -> dict:
     """Check one scene (with audio). Returns {scene_id, status, mode, sources: [...]}.
 
@@ -159,7 +155,7 @@ def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: in
             est = float(np.argmax(vote_histogram(maps[g])))
             truth = circular_mean(az_all[s][g])
             errs.append(float(azimuth_difference(est, truth)))
-            ests.append(_wrap(est))
+            ests.append(float(wrap_azimuth(est)))
             truths.append(truth)
         err = float(np.median(errs))
         results.append({"source": s, "role": roles[s] if s < len(roles) else "", "frames": int(len(dom)),
@@ -182,7 +178,7 @@ def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: in
                 errs = [float(azimuth_difference(p, truth)) for p in peaks]
                 j = int(np.argmin(errs))
                 results.append({"source": s, "role": roles[s] if s < len(roles) else "", "frames": int(len(frames)),
-                                "label": truth, "estimate": _wrap(peaks[j]), "error": errs[j],
+                                "label": truth, "estimate": float(wrap_azimuth(peaks[j])), "error": errs[j],
                                 "agree": errs[j] <= tolerance})
     if not results:
         return {"scene_id": scene.scene_id, "status": "untested", "mode": None, "sources": []}

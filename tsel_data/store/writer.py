@@ -50,8 +50,9 @@ def shard_names(split: str, shard: int) -> tuple[str, str]:
     return f"{stem}.h5", f"{stem}.json"
 
 
-def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene], attrs: dict) -> dict:
-    """Write one shard atomically; returns its entry for ``dataset.json``."""
+def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene], attrs: dict,
+                checksums: bool = True) -> dict:
+    """Write one shard atomically; returns its entry for ``dataset.json`` ({} without ``checksums``)."""
     h5_rel, json_rel = shard_names(split, shard)
     h5_path, json_path = os.path.join(out_dir, h5_rel), os.path.join(out_dir, json_rel)
     n_src = max(s.azimuth.shape[0] for s in scenes)
@@ -68,13 +69,15 @@ def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene
         _atomic_write_h5(h5_path, scenes, n_src, {"split": split, "shard": shard, **attrs})
     except OSError as e:
         raise write_error(what, e, out_dir) from None
-    return {
-        "file": h5_rel,
-        "json": json_rel,
-        "scenes": len(scenes),
-        "sha256": sha256_file(h5_path),
-        "json_sha256": sha256_file(json_path),
-    }
+    return shard_entry(out_dir, split, shard, len(scenes)) if checksums else {}
+
+
+def shard_entry(out_dir: str, split: str, shard: int, n_scenes: int) -> dict:
+    """A shard's entry in ``dataset.json``: its files and their sha256."""
+    h5_rel, json_rel = shard_names(split, shard)
+    return {"file": h5_rel, "json": json_rel, "scenes": n_scenes,
+            "sha256": sha256_file(os.path.join(out_dir, h5_rel)),
+            "json_sha256": sha256_file(os.path.join(out_dir, json_rel))}
 
 
 def atomic_write(path: str, data: bytes) -> None:
