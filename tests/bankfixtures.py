@@ -26,33 +26,64 @@ def ring_doas(n: int, el_deg: float, az0: float = 0.0, step: float | None = None
     return sph_to_cart(az0 + step * np.arange(n), el_deg, 1.0)
 
 
-def make_tau_db(root, rooms=(("bomb_shelter", 1), ("se203", 8)), n_traj=2, heights=(-10.0, 0.0, 10.0),
+LINEAR_ROOMS = {"sa203", "sc203", "se203", "tb103"}  # the rest of the TAU-SRIR DB is circular
+MIC_HEIGHT = 1.2
+
+
+def make_tau_db(root, rooms=(("bomb_shelter", 1), ("se203", 8)), n_traj=2, heights=(0.8, 1.2, 1.6),
                 n_doa=24, L=48, fs=24000, dists=(1.5, 2.5), empty=((1, 2),), seed=0, doas=None):
-    """Write a TAU-layout directory; returns {room: {(t, h): {"mic": [n,4,L], "foa": ..., "doa": [n,3]}}}."""
+    """Write a TAU-layout directory; returns {room: {(t, h): {"mic": [n,4,L], "foa": ..., "doa": [n,3],
+    "dist": [n]}}}.
+
+    As measinfo.mat describes the DB: heights are metres above the floor, the array is at
+    micPosition [0, 0, 1.2]. Circular rooms: group t is a ring of horizontal radius
+    dists[t], ``distances`` = [1 x nTraj]. Linear rooms (LINEAR_ROOMS): group t is a line
+    parallel to y at x = ±dists[t] (alternating sides, from +y to -y), ``distances`` =
+    start/end points [2 x 3 x nTraj]. ``doas`` overrides doa_xyz of some (room, t, h).
+    """
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     truth, room_recs, meas_recs = {}, [], []
     for name, number in rooms:
+        linear = name in LINEAR_ROOMS
         rirs_rec = np.empty((n_traj, len(heights)), dtype=[("doa_xyz", object)])
         counts = np.zeros((n_traj, len(heights)))
         truth[name] = {}
         for t in range(n_traj):
-            for h, el in enumerate(heights):
+            for h, height in enumerate(heights):
                 if (t, h) in empty:
                     rirs_rec[t, h]["doa_xyz"] = np.zeros((0, 0))
                     continue
-                doa = doas[(name, t, h)] if doas and (name, t, h) in doas else ring_doas(n_doa, el, az0=7.0 * t)
+                z = height - MIC_HEIGHT
+                if doas and (name, t, h) in doas:
+                    doa = doas[(name, t, h)]
+                    dist = np.full(len(doa), np.nan)
+                elif linear:
+                    x = dists[t] * (1 if t % 2 == 0 else -1)
+                    pts = np.stack([np.full(n_doa, x), np.linspace(3.0, -3.0, n_doa), np.full(n_doa, z)], -1)
+                    dist = np.linalg.norm(pts, axis=1)
+                    doa = pts / dist[:, None]
+                else:
+                    el = np.degrees(np.arctan2(z, dists[t]))
+                    doa = ring_doas(n_doa, el, az0=7.0 * t)
+                    dist = np.full(n_doa, np.hypot(dists[t], z))
                 rirs_rec[t, h]["doa_xyz"] = doa
                 counts[t, h] = len(doa)
                 truth[name][(t, h)] = {
-                    "doa": doa,
+                    "doa": doa, "dist": dist,
                     "mic": rng.standard_normal((len(doa), 4, L)).astype(np.float32),
                     "foa": rng.standard_normal((len(doa), 4, L)).astype(np.float32),
                 }
+        if linear:
+            xs = [dists[t] * (1 if t % 2 == 0 else -1) for t in range(n_traj)]
+            distances = np.array([[xs, [3.0] * n_traj, [0.0] * n_traj], [xs, [-3.0] * n_traj, [0.0] * n_traj]])
+        else:
+            distances = np.array([list(dists[:n_traj])])
         room_recs.append((name, 2019, rirs_rec, counts))
-        meas_recs.append((name, np.array([[8.0, 6.0, 3.0]]), np.array([list(dists[:n_traj])]),
-                          np.array([list(heights)]), np.array([[4.0, 3.0, 1.2]]), "circular"))
+        groups = np.array([[f"group{t}" for t in range(n_traj)]], dtype=object)
+        meas_recs.append((name, groups, np.array([[8.0, 6.0, 3.0]]), distances, np.array([list(heights)]),
+                          np.array([[0.0, 0.0, MIC_HEIGHT]]), "linear" if linear else "circular"))
         _write_v73(root / f"rirs_{number:02d}_{name}.mat", truth[name], n_traj, len(heights), L)
 
     room_arr = np.empty((len(rooms), 1), dtype=[("name", object), ("year", object), ("rirs", object), ("nRirs", object)])
@@ -60,7 +91,8 @@ def make_tau_db(root, rooms=(("bomb_shelter", 1), ("se203", 8)), n_traj=2, heigh
         room_arr[i, 0] = rec
     rirdata = {"fs": np.array([[fs]]), "room": room_arr, "tetra_mic_radius_m": np.array([[0.042]])}
     scipy.io.savemat(root / "rirdata.mat", {"rirdata": rirdata}, format="5")
-    meas_arr = np.empty((len(rooms), 1), dtype=[(k, object) for k in ("room", "dimensions", "distances", "heights", "micPosition", "trajectoryType")])
+    keys = ("room", "trajectories", "dimensions", "distances", "heights", "micPosition", "trajectoryType")
+    meas_arr = np.empty((len(rooms), 1), dtype=[(k, object) for k in keys])
     for i, rec in enumerate(meas_recs):
         meas_arr[i, 0] = rec
     scipy.io.savemat(root / "measinfo.mat", {"measinfo": meas_arr}, format="5")

@@ -16,7 +16,7 @@ from tsel_data.timevarying import render_moving
 def tau_dir(tmp_path_factory):
     root = tmp_path_factory.mktemp("TAU-SRIR_DB")
     # a source at a known doa_xyz: (0.5, -0.5, 1/sqrt 2) is azimuth -45 deg (front-right), elevation 45 deg
-    doas = {("se203", 0, 0): np.array([[0.5, -0.5, np.sqrt(0.5)], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])}
+    doas = {("bomb_shelter", 0, 0): np.array([[0.5, -0.5, np.sqrt(0.5)], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])}
     truth = make_tau_db(root, doas=doas)
     return root, truth
 
@@ -73,15 +73,23 @@ def test_tau_rooms_numbers_and_positions(tau_dir):
     assert b.kind == "tau" and b.format == "foa" and b.fs == 24000 and b.channel_names == ("W", "Y", "Z", "X")
     assert b.rooms == ["bomb_shelter", "se203"]
     assert b.resolve_room(8) == "se203" and b.resolve_room("1") == "bomb_shelter"
-    t = b.trajectory("se203", "t0h0")
+    t = b.trajectory("bomb_shelter", "t0h0")
     assert np.allclose(t.positions[0, :2], [-45.0, 45.0])  # front-right, up
     assert np.allclose(t.positions[1, :2], [90.0, 0.0])  # +y is left
     assert np.allclose(t.positions[2, 0], -180.0)  # behind, wrapped to [-180, 180)
     # circular trajectory of horizontal radius 1.5 m: distance = 1.5 / cos(el)
     assert np.allclose(t.positions[:, 2], 1.5 / np.cos(np.radians(t.positions[:, 1])))
-    ring = b.trajectory("bomb_shelter", "t1h0")
+    ring = b.trajectory("bomb_shelter", "t1h0")  # radius 2.5 m, 0.4 m below the array
     assert ring.kind == "circular" and ring.closed
-    assert np.allclose(ring.positions[:, 1], -10.0) and np.allclose(ring.positions[:, 2], 2.5 / np.cos(np.radians(10)))
+    assert np.allclose(ring.positions[:, 1], np.degrees(np.arctan2(-0.4, 2.5)))
+    assert np.allclose(ring.positions[:, 2], np.hypot(2.5, 0.4))
+    # se203 is a linear room: lines parallel to y, in front (t0, x = 1.5) and behind (t1, x = -2.5)
+    for tid, (tt, h) in (("t0h0", (0, 0)), ("t0h2", (0, 2)), ("t1h1", (1, 1))):
+        line = b.trajectory("se203", tid)
+        want = truth["se203"][(tt, h)]
+        assert line.kind == "linear" and not line.closed
+        assert np.allclose(line.positions[:, 2], want["dist"])
+        assert np.allclose(np.abs(line.positions[:, 0]) < 90, tt == 0)
     # the empty (trajectory 1, height 2) of se203 is not a trajectory
     assert [tr.id for tr in b.trajectories("se203")] == ["t0h0", "t0h1", "t0h2", "t1h0", "t1h1"]
 
@@ -139,7 +147,7 @@ def test_tau_errors(tau_dir, tmp_path):
     with pytest.raises(BankError, match="no room 7"):
         b.resolve_room(7)
     with pytest.raises(BankError, match="out of range"):
-        b.read("se203", "t0h0", [3])
+        b.read("bomb_shelter", "t0h0", [3])
     (tmp_path / "rirdata.mat").write_bytes((root / "rirdata.mat").read_bytes())
     with pytest.raises(BankError, match="measinfo.mat not found"):
         open_bank(tmp_path)
@@ -240,7 +248,7 @@ def test_import_tau_to_native_round_trip(tau_dir, tmp_path):
         assert d.dtype == np.float32 and d.chunks == (1, 4, 48)
         assert "importer" in f.attrs["provenance"]
     res = CliRunner().invoke(bank, ["info", str(out), "--trajectories"])
-    assert res.exit_code == 0 and "se203 #8: " in res.output and "t1h1: circular (closed)" in res.output
+    assert res.exit_code == 0 and "se203 #8: " in res.output and "t1h1: linear, 24 RIRs" in res.output
 
 
 def test_import_sofa_cli(tmp_path):
@@ -343,3 +351,51 @@ def test_static_point_and_render_follow_the_bank():
     measured = np.degrees(np.arctan2((frames[0] * frames[1]).sum(-1), (frames[0] * frames[3]).sum(-1)))
     labels = bank_path_positions(bank.trajectory("room", tid), idx, times, (np.arange(20) + 0.5) * 0.1)
     assert np.max(np.abs((measured - labels[:, 0] + 180) % 360 - 180)) < 1.0
+
+
+def test_native_views_are_the_file_mapped_read_only_and_equal_read(tmp_path, monkeypatch):
+    bank = _gain_bank()
+    bank._rooms["room"].rirs[0] += np.arange(16, dtype=np.float32)  # distinct samples, not just gains
+    nb = open_bank(write_bank(tmp_path / "b.h5", bank))
+    nb.views("room", 0, [0])  # maps the file, checking the map against an HDF5 read of two rows
+    log = ReadLog(monkeypatch)
+    idx = [5, 71, 0, 5]
+    views = nb.views("room", 0, idx)
+    assert log.data_reads() == {}  # no HDF5 read of RIR data: the rows are views of a map
+    want = bank.read("room", 0, idx)
+    assert len(views) == 4 and all(np.array_equal(v, w) for v, w in zip(views, want))
+    assert not views[0].flags.writeable
+    line = nb.views("room", 1, [24])  # the second trajectory starts at its own offset in the file
+    assert np.array_equal(line[0], bank.read("room", 1, [24])[0])
+    nb.close()
+    assert np.array_equal(views[1], want[1])  # views outlive the bank that gave them
+    with pytest.raises(BankError, match="out of range"):
+        nb.views("room", 0, [72])
+
+
+def test_views_fall_back_to_reading_where_the_file_cannot_be_mapped(tmp_path):
+    from tsel_data.banks._h5 import map_rows
+
+    data = np.random.default_rng(0).standard_normal((6, 4, 32)).astype(np.float32)
+    with h5py.File(tmp_path / "x.h5", "w") as f:
+        f.create_dataset("plain", data=data)
+        f.create_dataset("chunked", data=data, chunks=(1, 4, 32))
+        f.create_dataset("gzip", data=data, chunks=(1, 4, 32), compression="gzip")
+        f.create_dataset("f64", data=data.astype(np.float64))
+    with h5py.File(tmp_path / "x.h5", "r") as f:
+        for name in ("plain", "chunked"):
+            rows = map_rows(tmp_path / "x.h5", f[name])
+            assert len(rows) == 6 and all(np.array_equal(rows[i], data[i]) for i in range(6))
+        assert map_rows(tmp_path / "x.h5", f["gzip"]) is None
+        assert map_rows(tmp_path / "x.h5", f["f64"]) is None
+    mem = _gain_bank()  # no file: views are reads
+    assert all(np.array_equal(v, w) for v, w in zip(mem.views("room", 1, [3, 4]), mem.read("room", 1, [3, 4])))
+
+
+def test_pickled_native_bank_maps_again(tmp_path):
+    import pickle
+
+    nb = open_bank(write_bank(tmp_path / "b.h5", _gain_bank()))
+    v = nb.views("room", 0, [9])[0]
+    nb2 = pickle.loads(pickle.dumps(nb))  # what a worker process receives
+    assert np.array_equal(nb2.views("room", 0, [9])[0], v)

@@ -213,3 +213,30 @@ def test_empty_signal_gives_the_bare_tail_length():
     h = np.ones((3, 2, 40), dtype=np.float32)
     assert render_static(np.zeros(0), h[0]).shape == (2, 39)
     assert render_moving(np.zeros(0), h, [0.0, 0.1, 0.2], FS).shape == (2, 39)
+
+
+def test_rirs_as_a_list_of_read_only_views_render_the_same():
+    """What Bank.views gives the renderer (read-only rows of a map) equals the stacked array."""
+    rng = np.random.default_rng(11)
+    x = rng.standard_normal(4000).astype(np.float32)
+    h = rng.standard_normal((9, 4, 256)).astype(np.float32)
+    times = np.linspace(-0.01, 0.3, 9)
+    rows = [r.copy() for r in h]
+    for r in rows:
+        r.flags.writeable = False
+    assert np.array_equal(render_moving(x, rows, times, FS), render_moving(x, h, times, FS))
+    with pytest.raises(ValueError, match="one shape"):
+        render_moving(x, rows[:8] + [h[0, :, :100]], times, FS)
+
+
+@pytest.mark.parametrize("n", [8192, 4800, 1000])
+def test_fft_round_trip_on_padded_rows(n):
+    """fft.empty pads power-of-two rows (ducc0 slows 2x on them otherwise); values are unaffected."""
+    from tsel_data import fft
+
+    a = fft.empty((3, 5, n))
+    assert a.shape == (3, 5, n) and (a.strides[-2] // 4 != n) == (n % 512 == 0)
+    a[:] = np.random.default_rng(n).standard_normal((3, 5, n))
+    spec = fft.rfft(a)
+    assert np.allclose(spec, np.fft.rfft(a.astype(np.float64)), atol=1e-3 * np.sqrt(n))
+    assert np.allclose(fft.irfft(spec, n), a, atol=1e-5)

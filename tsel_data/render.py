@@ -93,9 +93,9 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
             from .plan import open_bank_cached
 
             b = s.bank
-            rirs = open_bank_cached(recipe.extra["bank"]).read(b["room"], b["trajectory"], b["indices"])
-            if len(b["indices"]) == 1:
-                images[k] = convolve(dry[k:k + 1], rirs, n)[0]
+            rirs = open_bank_cached(recipe.extra["bank"]).views(b["room"], b["trajectory"], b["indices"])
+            if len(rirs) == 1:
+                images[k] = convolve(dry[k:k + 1], rirs[0][None], n)[0]
             else:
                 images[k] = render_moving(dry[k], rirs, np.asarray(b["times"]), fs)[:, :n]
     return images, rt60

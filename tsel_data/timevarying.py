@@ -32,16 +32,21 @@ X_{m,k} the spectrum of w_k·x on block m, H_{k,j} of partition j of h_k. Knots 
 a few at a time so their spectra stay in cache. With B one knot interval (the bank walks'
 0.1 s), a block holds two knots, each RIR is transformed once (P·C rows of N = 2B), and
 each output block costs C inverse transforms; per call, B is the candidate with the least
-estimated time (:func:`_plan`). For 10 s, 4 channels, 7200-sample RIRs and 105 knots
-(benchmarks/bench_banks.py) over half the time is FFTs, most of it the RIR partitions,
-and a fifth the multiply-adds. Large arrays are allocated once per call: fresh pages
-cost ~0.4 ms per MB here.
+estimated time (:func:`_plan`). The crossfaded input (a·x and (1 - a)·x) is computed
+once for the whole signal, since each sample feeds two knots.
+
+Where the time goes, for 10 s, 4 channels, 7200-sample RIRs and 108 knots
+(benchmarks/bench_banks.py; ~22 ms per source here): FFTs half (the RIR partitions a
+third, 6.2M points), complex multiply-adds a quarter (6.2M, bound by memory traffic),
+the rest copying RIRs in and overlap-adding blocks out. Large arrays are allocated
+once per call; render workers keep freed memory (executors.reuse_freed_memory), since
+fresh pages cost ~0.4 ms per MB here.
 """
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft as sfft
 
+from . import fft
 from .geometry import wrap_azimuth
 
 _GROUP_BYTES = 2 << 20  # RIR spectra of one group of knots: about one core's L2
@@ -69,7 +74,7 @@ def render_static(signal, rir) -> np.ndarray:
         return np.zeros((C, n_out), dtype=np.float32)
     N = max(1 << 15, 1 << int(np.ceil(np.log2(2 * L))))
     if n_out <= N:
-        N = sfft.next_fast_len(max(n_out, 1), real=True)
+        N = fft.good_size(max(n_out, 1))
     B = N - L + 1  # >= L when there are several blocks: a frame spans two blocks at most
     nb = max(1, -(-T // B))
     xb = np.zeros(nb * B, dtype=np.float32)
@@ -78,7 +83,7 @@ def render_static(signal, rir) -> np.ndarray:
     xp[:, :B] = xb.reshape(nb, B)
     hp = np.zeros((C, N), dtype=np.float32)
     hp[:, :L] = h
-    y = sfft.irfft(sfft.rfft(hp)[:, None, :] * sfft.rfft(xp)[None], N)  # [C, nb, N]
+    y = fft.irfft(fft.rfft(hp)[:, None, :] * fft.rfft(xp)[None], N, overwrite=True)  # [C, nb, N]
     if nb == 1:
         return y[:, 0, :n_out]
     out = np.zeros((C, nb + 1, B), dtype=np.float32)
@@ -110,15 +115,23 @@ def render_moving(signal, rirs, times, fs: float) -> np.ndarray:
     """Render a moving source: float32 [C, T + L - 1] (rows may be strided, as in
     :func:`render_static`).
 
-    signal: [T] dry mono signal. rirs: [K, C, L] knot RIRs. times: [K] seconds at which
-    each RIR applies fully, strictly increasing (may lie outside the clip). fs: Hz.
-    One knot (K = 1) is the static convolution.
+    signal: [T] dry mono signal. rirs: [K, C, L] knot RIRs, or a sequence of K [C, L]
+    arrays (views into a memory-mapped bank are read in place: Bank.views). times: [K]
+    seconds at which each RIR applies fully, strictly increasing (may lie outside the
+    clip). fs: Hz. One knot (K = 1) is the static convolution.
     """
     x = np.asarray(signal, dtype=np.float32).reshape(-1)
-    h = np.asarray(rirs, dtype=np.float32)
     tau = np.asarray(times, dtype=np.float64).reshape(-1)
-    if h.ndim != 3 or h.shape[0] != len(tau):
-        raise ValueError(f"rirs must be [K, C, L] with K = len(times) = {len(tau)}, got {h.shape}")
+    if isinstance(rirs, np.ndarray):
+        h = rirs.astype(np.float32, copy=False)
+        shape = h.shape
+    else:
+        h = [np.asarray(r, dtype=np.float32) for r in rirs]
+        shape = (len(h),) + (h[0].shape if h else ())
+        if any(r.shape != shape[1:] for r in h):
+            raise ValueError(f"rirs must all have one shape [C, L]; got {sorted({r.shape for r in h})}")
+    if len(shape) != 3 or shape[0] != len(tau):
+        raise ValueError(f"rirs must be [K, C, L] with K = len(times) = {len(tau)}, got {tuple(shape)}")
     if len(tau) > 1 and np.any(np.diff(tau) <= 0):
         raise ValueError("knot times must be strictly increasing")
     K, T = len(tau), len(x)
@@ -160,7 +173,7 @@ def _fft_ns(N: int) -> float:
 
 def _sizes(B: int, L: int) -> tuple[int, int, int]:
     """(B, P, N) for blocks of B samples: P = ⌈L/B⌉ RIR partitions, N ≥ B + min(B, L) - 1."""
-    return B, -(-L // B), sfft.next_fast_len(B + min(B, L) - 1, real=True)
+    return B, -(-L // B), fft.good_size(B + min(B, L) - 1)
 
 
 def _plan(e: np.ndarray, C: int, L: int, T: int) -> tuple[int, int, int]:
@@ -194,83 +207,105 @@ def _plan(e: np.ndarray, C: int, L: int, T: int) -> tuple[int, int, int]:
     return best[1:]
 
 
-def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h: np.ndarray) -> np.ndarray:
+def _crossfade(x: np.ndarray, p: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(a·x, (1 - a)·x), float32 [T]: on interval i (samples [e_i, e_{i+1})) the signal
+    reaches knot i with weight 1 - a and knot i + 1 with weight a, a = (n - p_i) / (p_{i+1} - p_i)
+    clipped to [0, 1]; on the last interval a = 0. Computed once for all knots.
+    """
+    K = len(p)
+    rise = np.zeros_like(x)
+    for i in range(K - 1):
+        a, b = int(e[i]), int(e[i + 1])
+        if b > a:
+            # n - p_i as (n - e_i) + (e_i - p_i): small numbers, exact enough in float32
+            w = np.arange(b - a, dtype=np.float32)
+            w += np.float32(a - p[i])
+            w *= np.float32(1.0 / (p[i + 1] - p[i]))
+            np.clip(w, 0.0, 1.0, out=w)
+            np.multiply(w, x[a:b], out=rise[a:b])
+    return rise, x - rise
+
+
+def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h) -> np.ndarray:
     """Σ_k ((w_k·x) * h_k): float32 [C, T + L - 1]; w_k·x is zero outside [e_{k-1}, e_{k+1}).
 
     x: float32 [T]. p: float64 [K] knot positions (samples). e: int [K + 1] interval
-    starts (e_0 = 0, e_K = T). h: [K, C, L].
+    starts (e_0 = 0, e_K = T). h: K RIRs [C, L] (an array [K, C, L] or a sequence).
     """
-    K, C, L = h.shape
+    K = len(p)
+    C, L = h[0].shape
     T = len(x)
     B, P, N = _plan(e, C, L, T)
     o = _grid_origin(e, T, B)
     nb, F = -(-(T - o) // B), N // 2 + 1
     q = -(-N // B)  # output blocks touched by one frame
     # Knot k has input on samples [lo_k, hi_k) = [e_{k-1}, e_{k+1}) (from 0 for k = 0),
-    # which fall in blocks b0..b1.
-    lo, hi = np.r_[0, e[:-2]], e[1:]
+    # which fall in blocks b0..b1: rising weight up to e_k, falling after.
+    lo, mid, hi = np.r_[0, e[:-2]], e[:-1], e[1:]
     live = np.nonzero(hi > lo)[0]
     b0 = (lo[live] - o) // B
     nk = (hi[live] - 1 - o) // B - b0 + 1
+    rise, fall = _crossfade(x, p, e)
     # Knots are taken a few at a time so that their spectra stay in cache; each knot's
     # RIR partitions are transformed once, from a zero-padded buffer [k, P, C, N].
     Gk = int(max(1, min(len(live), _GROUP_BYTES // (8 * F * P * C))))
     starts = np.arange(0, len(live), Gk)
     pairs = np.add.reduceat(nk, starts)
     hbuf = np.zeros((Gk, P, C, N), dtype=np.float32)
+    H = np.empty((Gk, P, C, F), dtype=np.complex64)
     # Each group's input pieces are laid out end to end in `flat` (B per row), then copied
-    # into zero-padded rows (padding through scipy's n= argument is ~3x slower).
-    rows = -(-int(pairs.max()) // 4) * 4  # a multiple of 4: pocketfft's vector path
+    # into zero-padded rows.
+    rows = int(pairs.max())
     flat = np.empty(rows * B, dtype=np.float32)
     stage = np.zeros((rows, N), dtype=np.float32)
-    prod = np.empty((int(nk.max()), P, C, F), dtype=np.complex64)
+    X = np.empty((rows, F), dtype=np.complex64)
+    prod = np.empty((P, C, F), dtype=np.complex64)
     # Output blocks, and the spectra of the unfinished ones: acc[i] is block a0 + i.
     out = np.zeros((C, nb + P - 1 + q, B), dtype=np.float32)
     ends = np.maximum.reduceat(b0 + nk, starts)
     acc = np.zeros((int(max(ends - b0[starts])) + P, C, F), dtype=np.complex64)
+    y = fft.empty((len(acc), C, N))
     a0, used = 0, 0
-    contiguous = live[-1] - live[0] + 1 == len(live)
 
     for gi, i in enumerate(starts):
         g = min(Gk, len(live) - i)
-        ks = slice(live[i], live[i] + g) if contiguous else live[i : i + g]
-        for j in range(P):
-            w = min(B, L - j * B)
-            hbuf[:g, j, :, :w] = h[ks, :, j * B : j * B + w]
-        H = sfft.rfft(hbuf[:g], axis=-1)  # [g, P, C, F]
+        for t in range(g):
+            hk = h[int(live[i + t])]
+            for j in range(P):
+                w = min(B, L - j * B)
+                hbuf[t, j, :, :w] = hk[:, j * B : j * B + w]
+        fft.rfft(hbuf[:g], out=H[:g])  # [g, P, C, F]
         # Each knot's input, cut at block boundaries: consecutive rows of `stage`.
         r = 0
         for t in range(i, i + g):
             k, n = int(live[t]), int(nk[t])
             s0 = r * B - (o + int(b0[t]) * B)  # flat index of sample 0 for this knot's rows
-            u, v = s0 + int(lo[k]), s0 + int(hi[k])
-            flat[r * B : u] = 0
-            # w_k: 1 at knot k, 0 at its neighbours, held constant beyond the end knots
-            hat = _HAT[int(k == 0) : 3 - int(k == K - 1)]
-            wk = np.interp(np.arange(lo[k], hi[k], dtype=np.float64), p[max(k - 1, 0) : k + 2], hat)
-            np.multiply(x[lo[k] : hi[k]], wk, out=flat[u:v], casting="unsafe")
-            flat[v : (r + n) * B] = 0
+            a, m, b = int(lo[k]), int(mid[k]), int(hi[k])
+            flat[r * B : s0 + a] = 0
+            flat[s0 + a : s0 + m] = rise[a:m]
+            flat[s0 + m : s0 + b] = fall[m:b]
+            flat[s0 + b : (r + n) * B] = 0
             r += n
-        flat[r * B :] = 0
-        stage[:, :B] = flat.reshape(rows, B)
-        X = sfft.rfft(stage, axis=-1)[:, None, None, :]  # [rows, 1, 1, F]
-        # Y_m += X_{m-j,k} · H_{k,j}
+        stage[:r, :B] = flat[: r * B].reshape(r, B)
+        fft.rfft(stage[:r], out=X[:r])
+        # Y_m += X_{m-j,k} · H_{k,j}: piece u of a knot feeds blocks b0 + u + (0..P-1)
         r = 0
         for t in range(g):
-            n, m = int(nk[i + t]), int(b0[i + t]) - a0
-            np.multiply(X[r : r + n], H[t], out=prod[:n])
-            for j in range(P):
-                acc[m + j : m + j + n] += prod[:n, j]
-            r += n
+            m = int(b0[i + t]) - a0
+            for u in range(int(nk[i + t])):
+                np.multiply(X[r], H[t], out=prod)
+                acc[m + u : m + u + P] += prod
+                r += 1
         used = max(used, int(ends[gi]) + P - 1 - a0)
         # Blocks before the next group's first block are complete: inverse transform
         # them and overlap-add at their place.
         done = (int(b0[i + g]) if i + g < len(live) else nb + P - 1) - a0
         if done > 0:
-            y = sfft.irfft(acc[:done], N, axis=-1).transpose(1, 0, 2)  # [C, done, N]
+            fft.irfft(acc[:done], N, out=y[:done], overwrite=True)
+            yt = y[:done].transpose(1, 0, 2)  # [C, done, N]
             for u in range(q):
                 w = min(B, N - u * B)
-                out[:, a0 + u : a0 + u + done, :w] += y[:, :, u * B : u * B + w]
+                out[:, a0 + u : a0 + u + done, :w] += yt[:, :, u * B : u * B + w]
             keep = max(0, used - done)
             acc[:keep] = acc[done : done + keep]
             acc[keep:used] = 0

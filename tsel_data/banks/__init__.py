@@ -115,11 +115,35 @@ class Bank:
         ids = [t.id for t in self.trajectories(room)]
         raise BankError(f"{self.source}: room {room!r} has no trajectory {traj_id!r}; it has {ids}")
 
+    def _mapped(self, room: str, traj: Trajectory):
+        """The RIRs of ``traj`` as a sequence of read-only float32 [C, L] arrays mapped
+        from the bank file (item i is position i), where the bank can map it; else None."""
+        return None
+
     def read(self, room: str, traj_id, indices) -> np.ndarray:
         """RIRs at positions ``indices`` of trajectory ``traj_id``: float32 [len(indices), C, L].
 
         Only those RIRs are read from disk; indices may repeat and come in any order.
         """
+        traj, idx = self._indices(room, traj_id, indices)
+        rows, inverse = np.unique(idx, return_inverse=True)
+        out = self._read(room, traj, rows)
+        return np.ascontiguousarray(out[inverse], dtype=np.float32)
+
+    def views(self, room: str, traj_id, indices) -> list[np.ndarray]:
+        """RIRs at positions ``indices`` as a list of read-only float32 [C, L] arrays.
+
+        Banks whose file can be memory-mapped (our own format) give views into the file,
+        so nothing is copied until the RIRs are used (``render_moving`` takes such a
+        list); other banks read them (:meth:`read`).
+        """
+        traj, idx = self._indices(room, traj_id, indices)
+        rows = self._mapped(room, traj)
+        if rows is None:
+            return list(self.read(room, traj_id, idx))
+        return [rows[i] for i in idx]
+
+    def _indices(self, room: str, traj_id, indices) -> tuple[Trajectory, np.ndarray]:
         traj = self.trajectory(room, traj_id)
         idx = np.asarray(indices, dtype=np.int64).reshape(-1)
         if idx.size == 0:
@@ -129,9 +153,7 @@ class Bank:
                 f"{self.source}: index {int(idx.max() if idx.max() >= len(traj) else idx.min())} out of range "
                 f"for {room}/{traj_id}, which has {len(traj)} RIRs"
             )
-        rows, inverse = np.unique(idx, return_inverse=True)
-        out = self._read(room, traj, rows)
-        return np.ascontiguousarray(out[inverse], dtype=np.float32)
+        return traj, idx
 
     def n_rirs(self, room: str | None = None) -> int:
         rooms = self.rooms if room is None else [room]

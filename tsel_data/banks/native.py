@@ -89,6 +89,13 @@ class NativeBank(Bank):
         ds = self._h5.get(self.path)["rooms"][room]["rirs"]
         return read_rows(ds, rows + self._meta[room]["offset"][str(traj.id)])
 
+    def _mapped(self, room, traj):
+        rows = self._h5.mapped(self.path, f"rooms/{room}/rirs")
+        if rows is None:
+            return None
+        a = self._meta[room]["offset"][str(traj.id)]
+        return rows[a : a + len(traj)]
+
     def close(self):
         self._h5.close()
 

@@ -8,8 +8,10 @@ Layout of the distribution directory ``TAU-SRIR_DB/``:
   the array to each measured source position, in the order the source moved.
   Missing (trajectory, height) pairs are empty.
 - ``measinfo.mat`` (MATLAB v5): struct array ``measinfo``, one entry per room, with
-  ``room``, ``trajectoryType`` (``circular`` | ``linear``), ``distances``, ``heights``,
-  ``micPosition``, ``dimensions``.
+  ``room``, ``trajectories`` (group names), ``trajectoryType`` (``circular`` |
+  ``linear``), ``distances``, ``heights`` (metres above the floor), ``micPosition``
+  ([0, 0, 1.2]: coordinates have their origin on the floor below the array),
+  ``dimensions``.
 - ``rirs_NN_<room>.mat`` (MATLAB v7.3 = HDF5): struct array ``rirs`` [trajectory ×
   height] with fields ``mic`` and ``foa``, each [7200 samples × 4 channels × nDOA].
   In HDF5, MATLAB stores the struct array as group ``/rirs`` whose field datasets hold
@@ -22,13 +24,17 @@ Conventions: ``doa_xyz`` is in the DCASE array frame (x front, y left, z up; the
 generator turns it into azimuth with ``atan2(y, x)`` and elevation with
 ``atan2(z, hypot(x, y))``), which is this toolkit's frame, so positions are used as
 they are. FOA is ACN/SN3D (W, Y, Z, X) and MIC is the Eigenmike tetrahedral subset,
-both as in DESIGN.md. Distances are not in ``doa_xyz``: for circular trajectories the
-source moves on a circle of horizontal radius ``distances[trajectory]`` around the
-vertical axis through the array, so the distance is that radius over
-``hypot(x, y)`` of the unit vector; for linear trajectories the source moves along a
-line parallel to the array's y axis at the front offset ``distances[0, trajectory]``,
-so the distance is that offset over ``x``. If measinfo lacks a usable value the
-distance is NaN (azimuth and elevation are still exact).
+both as in DESIGN.md.
+
+Distances are not in ``doa_xyz``. Circular rooms: ``distances`` is [1 × nGroups], the
+horizontal radius of each group's circle around the vertical axis through the array,
+so the distance is that radius over ``hypot(x, y)`` of the unit vector. Linear rooms
+(sa203, sc203, se203, tb103): ``distances`` is [2 × 3 × nGroups], the start and end
+points (x, y, z) of each group's line, which runs parallel to the array's y axis on one
+side of it; the source lies on the vertical plane through that line, so the distance
+is where the DOA ray meets the plane (SpatialScaper's cylinder about y gives the same
+for such lines). If measinfo lacks a usable value the distance is NaN (azimuth and
+elevation are still exact).
 
 Room numbers (used for the DCASE/paper splits): 1 bomb_shelter, 2 gym, 3 pb132,
 4 pc226, 5 sa203, 6 sc203, 8 se203, 9 tb103, 10 tc352, from the ``rirs_NN_`` prefix.
@@ -121,6 +127,7 @@ class TauBank(Bank):
         info = {"number": r["number"], "file": r["path"].name}
         m = r["meas"]
         if m is not None:
+            # micPosition is [0, 0, height] in measinfo's own origin (the floor below the array)
             for key, name in (("dimensions", "dimensions"), ("mic_position", "micPosition")):
                 if name in m.dtype.names:
                     v = np.asarray(m[name], dtype=np.float64).reshape(-1)
@@ -171,7 +178,9 @@ class TauBank(Bank):
         refs = g[self._field]
         t, h = self._slices[room][traj.id]
         n_traj, n_height = self._dims[room]
-        # MATLAB writes a [trajectory x height] struct array as HDF5 [height, trajectory].
+        # MATLAB writes a [trajectory x height] struct array as HDF5 [height, trajectory]
+        # (as mat73 reads it). In a square room (se203 is 4 x 4) both tests below match;
+        # the first, MATLAB's order, is the one real files use.
         if refs.shape == (n_height, n_traj):
             ref = refs[h, t]
         elif refs.shape == (n_traj, n_height):
@@ -285,15 +294,20 @@ def _distances(doa: np.ndarray, kind: str, dists, t: int) -> np.ndarray:
         horiz = np.hypot(doa[:, 0], doa[:, 1])
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(horiz > 1e-6, d[t] / horiz, np.nan) * np.linalg.norm(doa, axis=1)
-    # linear: a line parallel to y at front offset dx (first row of a 3 x ntraj matrix)
-    if dists.ndim == 2 and dists.shape[0] == 3 and t < dists.shape[1]:
-        dx = dists[0, t]
-    elif dists.ndim == 2 and dists.shape[1] == 3 and t < dists.shape[0]:
-        dx = dists[t, 0]
-    else:
+    # linear: [start, end] x (x, y, z) x group; intersect the ray with the vertical plane
+    # through the group's line (horizontal coordinates are relative to the array)
+    if dists.size % 6 or t >= dists.size // 6:
+        return nan
+    ends = dists.reshape(2, 3, -1)[:, :2, t]
+    along = ends[1] - ends[0]
+    normal = np.array([-along[1], along[0]])
+    if not np.any(normal):
         return nan
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(np.abs(doa[:, 0]) > 0.1, np.abs(dx / doa[:, 0]), np.nan) * np.linalg.norm(doa, axis=1)
+        facing = doa[:, :2] @ normal
+        s = (ends[0] @ normal) / facing
+        ok = (np.abs(facing) > 1e-3 * np.linalg.norm(normal)) & (s > 0)
+        return np.where(ok, s * np.linalg.norm(doa, axis=1), np.nan)
 
 
 def _is_closed(pos: np.ndarray) -> bool:
