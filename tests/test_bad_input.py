@@ -224,6 +224,7 @@ GEOMETRY = {
                              ["sources.distance minimum 8.0 m cannot fit in the smallest room"], True),
     "sources-above-ceiling": ('sources.height=["uniform", 4.8, 5.0]', ["sources.height minimum 4.8 m",
                                                                        "lowest room"], True),
+    "unknown-path": ('scene.path=["choose", ["arc", "spiral"]]', ['scene.path must be "arc", "line"', "spiral"], True),
 }
 
 

@@ -63,7 +63,8 @@ class SceneConfig:
     caption_similarity: float = 0.5  # max word-overlap (Jaccard) between query and other sources' captions
     motion: str = "static"  # static | moving | mixed
     moving_fraction: float = 0.5
-    speed: Dist = _d(["choose", [10.0, 20.0, 40.0]])  # degrees/s, bank walks and simulated arcs
+    speed: Dist = _d(["choose", [10.0, 20.0, 40.0]])  # degrees/s, bank walks and simulated paths
+    path: Dist = _d("arc")  # simulated moving sources: arc | line (or a choose of both)
 
 
 @dataclass(frozen=True)
@@ -213,6 +214,9 @@ def validate_config(cfg: Config, where: str = "config", smallest_room: bool = Tr
         if val not in allowed:
             name = key if sec is None else f"{sec}.{key}"
             raise ConfigError(f"{where}: {name} = {val!r} is not one of {', '.join(allowed)}")
+    if cfg.scene.path.kind not in ("const", "choose") or not set(cfg.scene.path.options) <= {"arc", "line"}:
+        raise ConfigError(f"{where}: scene.path must be \"arc\", \"line\" or [\"choose\", [\"arc\", \"line\"]], "
+                          f"got {cfg.scene.path.to_json()!r}")
     for sc in cfg.scene.scenario.options:
         if sc not in ("two-directional", "directional+additive"):
             raise ConfigError(f"{where}: scene.scenario option {sc!r} is not two-directional or directional+additive")

@@ -168,10 +168,10 @@ def _place_sources(cfg, rng, spatial, moving, room: Room, centre, yaw):
             r_h = math.sqrt(d * d - dz * dz)
             az = float(rng.uniform(-180.0, 180.0))
             if mv:
-                place = _arc(cfg, rng, room, centre, yaw, az, r_h, h)
+                place = _moving_path(cfg, rng, room, centre, yaw, az, r_h, h, fc)
                 if place is None:
                     continue
-                track = az + place.pop("_dir") * place.pop("_speed") * fc
+                track = place.pop("_track")
             else:
                 # array frame -> room frame by hand: numpy per point is slower than the maths
                 a = math.radians(az + yaw)
@@ -191,24 +191,45 @@ def _place_sources(cfg, rng, spatial, moving, room: Room, centre, yaw):
 
 # A moving source's RIRs are computed at least every 100 ms and every 4 degrees.
 KNOT_HOP_S, KNOT_STEP_DEG = 0.1, 4.0
+PATHS = ("arc", "line")
 
 
-def _arc(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, h: float):
-    """An arc around the array at constant distance and height, or None if it leaves the room."""
+def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, h: float, fc: np.ndarray):
+    """A simulated moving source at constant height, or None if it leaves the room:
+    ``{"path": ((t, x, y, z), ...) room frame, "_track": azimuth (array frame) at the label frames}``.
+
+    ``arc``: around the array at horizontal distance r_h, azimuth az0 + dir·ω·t.
+    ``line``: a straight pass, perpendicular to azimuth az0 at horizontal distance r_h
+    when closest (at a time drawn over the clip), at the speed v = ω·r_h that sweeps ω
+    degrees per second there, the fastest the azimuth changes along the line. ω is
+    ``scene.speed``; either way the azimuth moves at most ω °/s, so knots every
+    min(100 ms, 4°/ω) keep a knot at least every 100 ms and every 4°.
+    """
+    kind = cfg.scene.path.sample(rng)
     speed = float(cfg.scene.speed.sample(rng))
     direction = 1 if rng.random() < 0.5 else -1
     dur = cfg.audio.duration
     hop = min(KNOT_HOP_S, KNOT_STEP_DEG / speed) if speed > 0 else dur
     t = np.arange(0.0, dur + hop - 1e-9, hop)
-    a = np.radians(az0 + yaw + direction * speed * t)
-    x, y = centre[0] + r_h * np.cos(a), centre[1] + r_h * np.sin(a)
+    a0 = math.radians(az0 + yaw)
+    if kind == "arc":
+        a = np.radians(az0 + yaw + direction * speed * t)
+        x, y = centre[0] + r_h * np.cos(a), centre[1] + r_h * np.sin(a)
+        track = az0 + direction * speed * fc
+    else:
+        t_close = float(rng.uniform(0.0, dur))
+        v = math.radians(speed) * r_h
+        s = direction * v * (t - t_close)  # signed distance along the line from the closest point
+        x = centre[0] + r_h * math.cos(a0) - s * math.sin(a0)
+        y = centre[1] + r_h * math.sin(a0) + s * math.cos(a0)
+        track = az0 + direction * np.degrees(np.arctan2(v * (fc - t_close), r_h))
     m = cfg.sources.wall_margin
     if (x.min() < m or y.min() < m or x.max() > room.dims[0] - m or y.max() > room.dims[1] - m
             or not m <= h <= room.dims[2] - m):
         return None
     path = tuple((round(float(ti), 6), round(float(xi), 6), round(float(yi), 6), round(h, 6))
                  for ti, xi, yi in zip(t, x, y))
-    return {"path": path, "_dir": direction, "_speed": speed}
+    return {"path": path, "_track": track}
 
 
 # --- RIR-bank scenes ----------------------------------------------------------------------
