@@ -4,6 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
+DEMO_MOVING_OUT ?= demo-moving-out
 
 .PHONY: demo test test-fast bench clean
 
@@ -14,13 +15,17 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 # Build the demo dataset from the built-in synthetic corpus (no downloads), then summarise it,
-# draw one scene and check its labels against the audio.
+# draw one scene and check its labels against the audio. Then the same corpus with moving
+# sources from a small simulated RIR bank (FOA, rooms split by split).
 demo: $(STAMP)
 	$(BIN)/tsel generate --preset demo --out $(DEMO_OUT) --resume
 	$(BIN)/tsel stats $(DEMO_OUT) --png $(DEMO_OUT)/stats.png
 	$(BIN)/tsel inspect $(DEMO_OUT) test/0 --png $(DEMO_OUT)/test-000000.png --wav $(DEMO_OUT)/test-000000.wav
 	$(BIN)/tsel verify $(DEMO_OUT)
+	$(BIN)/tsel generate --preset demo-moving --out $(DEMO_MOVING_OUT) --resume
+	$(BIN)/tsel bank info $(DEMO_MOVING_OUT)/demo-bank.h5
 	@echo "demo dataset in $(DEMO_OUT)/ (dataset.json; pictures: stats.png, test-000000.png)"
+	@echo "moving-source demo dataset in $(DEMO_MOVING_OUT)/"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
@@ -35,4 +40,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_scaling.py
 
 clean:
-	rm -rf $(DEMO_OUT) .pytest_cache
+	rm -rf $(DEMO_OUT) $(DEMO_MOVING_OUT) .pytest_cache
