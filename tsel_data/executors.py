@@ -40,7 +40,8 @@ def reuse_freed_memory() -> None:
     faults on fresh pages (~0.4 ms per MB here): a moving bank scene rendered in 29 ms
     per source with the default, 24 ms with these settings (benchmarks/bench_banks.py).
     Blocks up to 32 MB now come from the heap, and up to 256 MB of freed heap is kept.
-    A no-op where the C library is not glibc.
+    The setting is process-wide and stays after a run in the caller's own process (a
+    serial ``generate``); a no-op where the C library is not glibc.
     """
     global _MALLOC_SET
     if _MALLOC_SET:
