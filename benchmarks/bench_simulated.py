@@ -173,9 +173,12 @@ def run_scenes(args) -> dict:
 
 
 def in_worker(fn, args, processes: int = 1):
-    """Run ``fn`` on each of ``args`` in a fresh pool (fresh processes: clean peak RSS)."""
+    """Run ``fn`` on each of ``args`` in a fresh pool (fresh processes: clean peak RSS), each
+    process set up as the toolkit's render workers are (executors.prepare_worker)."""
+    from tsel_data.executors import prepare_worker
+
     ctx = mp.get_context("fork")
-    with ctx.Pool(processes, maxtasksperchild=1) as pool:
+    with ctx.Pool(processes, initializer=prepare_worker, maxtasksperchild=1) as pool:
         return pool.map(fn, args)
 
 
