@@ -91,3 +91,29 @@ def test_clis(ds, tmp_path):
     assert json.loads(res.output)["test"]["scenes"] == 2
     res = CliRunner().invoke(stats_cmd, [str(tmp_path / "nothing")])
     assert isinstance(res.exception, DatasetError)
+
+
+def test_read_only_tools_leave_no_file_open(ds, tmp_path):
+    """Called from Python (a notebook, a training script), the tools close the shards they open."""
+    import h5py
+
+    from tsel_data.evaluate import Prediction, evaluate
+    from tsel_data.export import export_dcase
+    from tsel_data.reader import open_dataset
+    from tsel_data.verify import verify_dataset
+
+    root, _ = ds
+
+    def open_files():
+        return h5py.h5f.get_obj_count(h5py.h5f.OBJ_ALL, h5py.h5f.OBJ_FILE)
+
+    before = open_files()
+    with open_dataset(root, "test") as d:
+        preds = {s.scene_id: Prediction(s.scene_id, s.azimuth[0].astype(float)) for s in d.iter_labels()}
+    find_scene(root, "test-000001").audio
+    find_scene(root, "train/0").audio
+    dataset_stats(root)
+    evaluate(root, "test", preds)
+    verify_dataset(root, ["test"])
+    export_dcase(root, str(tmp_path / "dcase"), splits=["test"], subtype="FLOAT")
+    assert open_files() == before

@@ -183,8 +183,9 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
     """Score ``predictions`` (a JSONL path or {scene_id: Prediction}) on one split."""
     preds = read_predictions(predictions) if isinstance(predictions, (str, bytes)) or hasattr(
         predictions, "__fspath__") else dict(predictions)
-    ds = open_dataset(root, split)
-    ids = ds.scene_ids()
+    with open_dataset(root, split) as ds:
+        ids = ds.scene_ids()
+        scenes = list(ds.iter_labels())  # labels only: small
     known = set(ids)
     unknown = [s for s in preds if s not in known]
     if unknown:
@@ -195,7 +196,7 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
         raise PredictionError(f"{len(missing)} of {len(ids)} scenes of split {split!r} have no prediction, e.g. "
                               f"{missing[0]!r}; the file must predict every scene")
     per_scene, groups_sc, groups_mo, all_err = [], {}, {}, []
-    for scene in ds.iter_labels():
+    for scene in scenes:
         moving = scene.target_moving
         err = scene_errors(preds[scene.scene_id], scene.azimuth[0].astype(np.float64), scene.active[0], moving)
         scenario = scene.record.get("scenario", "unknown")

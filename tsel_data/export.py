@@ -89,28 +89,28 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
         fold = all_splits.index(split) + 1
         if fold > 9:
             raise DatasetError(f"{root}: split {split!r} would be fold {fold}; DCASE names hold one digit (1-9)")
-        ds = open_dataset(root, split)
-        fmt = ds.format
-        audio_dir = os.path.join(out, f"{'foa' if fmt == 'foa' else 'mic'}_dev", f"dev-{split}-tsel")
-        meta_dir = os.path.join(out, "metadata_dev", f"dev-{split}-tsel")
-        os.makedirs(audio_dir, exist_ok=True)
-        os.makedirs(meta_dir, exist_ok=True)
-        n_rows = 0
-        for scene in ds:
-            name = f"fold{fold}_{scene.scene_id}"
-            peak = float(np.max(np.abs(scene.audio))) if scene.audio.size else 0.0
-            if subtype != "FLOAT" and peak >= 1.0:
-                raise DatasetError(f"{scene.scene_id}: peak {peak:.3f} would clip in {subtype}; "
-                                   f"export with --subtype FLOAT")
-            sf.write(os.path.join(audio_dir, name + ".wav"), scene.audio.T, scene.fs, subtype=subtype)
-            rows = dcase_rows(scene)
-            with open(os.path.join(meta_dir, name + ".csv"), "w", newline="", encoding="utf-8") as f:
-                csv.writer(f, lineterminator="\n").writerows(rows)
-            n_rows += len(rows)
-            query_rows.append((fold, split, name, scene.scene_id, scene.query))
-            if progress:
-                progress(scene)
-        summary["splits"][split] = {"fold": fold, "scenes": len(ds), "rows": n_rows, "audio_dir": audio_dir,
+        with open_dataset(root, split) as ds:
+            fmt, n_scenes = ds.format, len(ds)
+            audio_dir = os.path.join(out, f"{'foa' if fmt == 'foa' else 'mic'}_dev", f"dev-{split}-tsel")
+            meta_dir = os.path.join(out, "metadata_dev", f"dev-{split}-tsel")
+            os.makedirs(audio_dir, exist_ok=True)
+            os.makedirs(meta_dir, exist_ok=True)
+            n_rows = 0
+            for scene in ds:
+                name = f"fold{fold}_{scene.scene_id}"
+                peak = float(np.max(np.abs(scene.audio))) if scene.audio.size else 0.0
+                if subtype != "FLOAT" and peak >= 1.0:
+                    raise DatasetError(f"{scene.scene_id}: peak {peak:.3f} would clip in {subtype}; "
+                                       f"export with --subtype FLOAT")
+                sf.write(os.path.join(audio_dir, name + ".wav"), scene.audio.T, scene.fs, subtype=subtype)
+                rows = dcase_rows(scene)
+                with open(os.path.join(meta_dir, name + ".csv"), "w", newline="", encoding="utf-8") as f:
+                    csv.writer(f, lineterminator="\n").writerows(rows)
+                n_rows += len(rows)
+                query_rows.append((fold, split, name, scene.scene_id, scene.query))
+                if progress:
+                    progress(scene)
+        summary["splits"][split] = {"fold": fold, "scenes": n_scenes, "rows": n_rows, "audio_dir": audio_dir,
                                     "metadata_dir": meta_dir}
         summary["rows"] += n_rows
     with open(os.path.join(out, "queries.csv"), "w", newline="", encoding="utf-8") as f:

@@ -28,17 +28,17 @@ def find_scene(root: str, ref: str, split: str | None = None) -> Scene:
             i = int(idx)
         except ValueError:
             raise TselError(f"scene {ref!r}: expected SPLIT/INDEX with an integer index, e.g. test/0") from None
-        ds = open_dataset(root, sp)
-        try:
-            return ds[i]
-        except IndexError:
-            raise DatasetError(f"scene {ref!r}: split {sp!r} has {len(ds)} scenes (index 0..{len(ds) - 1})") from None
+        with open_dataset(root, sp) as ds:
+            try:
+                return ds[i]
+            except IndexError:
+                raise DatasetError(f"scene {ref!r}: split {sp!r} has {len(ds)} scenes (index 0..{len(ds) - 1})") from None
     # Scene ids start with their split by convention; look there first, then everywhere.
     order = [split] if split else sorted(splits, key=lambda s: not ref.startswith(s + "-"))
     for sp in order:
-        ds = open_dataset(root, sp)
-        if ref in ds:
-            return ds.by_id(ref)
+        with open_dataset(root, sp) as ds:
+            if ref in ds:
+                return ds.by_id(ref)
     where = f"split {split!r}" if split else f"splits {', '.join(splits)}"
     raise DatasetError(f"no scene {ref!r} in {where} of {root}; give a scene id or SPLIT/INDEX such as "
                        f"{splits[0]}/0")

@@ -37,14 +37,15 @@ def _mean_az(az, active) -> float | None:
 
 def split_stats(root: str, split: str) -> dict:
     """Statistics of one split (a JSON-friendly dict; ``raw`` holds per-scene values for plots)."""
-    ds = open_dataset(root, split)
+    with open_dataset(root, split) as ds:
+        scenes = list(ds.iter_labels())  # labels only: small
     raw = {k: [] for k in ("target_az", "separation", "target_dist", "interferer_dist", "room_x", "room_y",
                            "room_z", "volume", "rt60", "rt60_measured", "target_level", "tir", "peak",
                            "target_active", "query_words")}
     clip_uses, target_clips = Counter(), Counter()
     scenarios, motions = Counter(), Counter()
     moving = 0
-    for sc in ds.iter_labels():
+    for sc in scenes:
         rec = sc.record
         srcs = rec.get("sources") or [{} for _ in range(sc.n_sources)]
         scenarios[rec.get("scenario", "unknown")] += 1
@@ -83,7 +84,7 @@ def split_stats(root: str, split: str) -> dict:
         raw["peak"].append(lv.get("peak"))
         raw["target_active"].append(float(act[0].mean()))
         raw["query_words"].append(len(sc.query.split()))
-    n = len(ds)
+    n = len(scenes)
     az = np.asarray([a for a in raw["target_az"] if a is not None])
     hist, _ = np.histogram(az, bins=np.arange(-180, 181, AZ_BIN))
     pairs = [(r, m) for r, m in zip(raw["rt60"], raw["rt60_measured"]) if r is not None and m is not None]

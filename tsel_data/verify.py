@@ -231,13 +231,13 @@ def verify_dataset(root: str, splits=None, tolerance: float = 20.0, min_frames: 
     """Run :func:`verify_scene` on every scene (or the first ``max_scenes``) of each split."""
     report = VerifyReport(tolerance)
     for split in (list(splits) if splits else list_splits(root)):
-        ds = open_dataset(root, split)
-        n = len(ds) if max_scenes is None else min(len(ds), max_scenes)
-        res = []
-        for i in range(n):
-            res.append(verify_scene(ds[i], tolerance, min_frames))
-            if progress:
-                progress(res[-1])
+        with open_dataset(root, split) as ds:
+            n = len(ds) if max_scenes is None else min(len(ds), max_scenes)
+            res = []
+            for i in range(n):
+                res.append(verify_scene(ds[i], tolerance, min_frames))
+                if progress:
+                    progress(res[-1])
         tested = [r for r in res if r["status"] != "untested"]
         errors = [src["error"] for r in tested for src in r["sources"]]
         agree = sum(r["status"] == "agree" for r in tested)
