@@ -93,14 +93,13 @@ def test_clis(ds, tmp_path):
     assert isinstance(res.exception, DatasetError)
 
 
-def test_read_only_tools_leave_no_file_open(ds, tmp_path):
-    """Called from Python (a notebook, a training script), the tools close the shards they open."""
+def test_tools_close_their_files_even_when_they_fail(ds):
+    """An error's traceback keeps the failing call's frame (and its open dataset) alive as
+    long as the caller holds it, e.g. a notebook's last exception: the files must be closed
+    by then, not when the traceback goes."""
     import h5py
 
-    from tsel_data.evaluate import Prediction, evaluate
-    from tsel_data.export import export_dcase
-    from tsel_data.reader import open_dataset
-    from tsel_data.verify import verify_dataset
+    from tsel_data.evaluate import PredictionError, evaluate
 
     root, _ = ds
 
@@ -108,12 +107,9 @@ def test_read_only_tools_leave_no_file_open(ds, tmp_path):
         return h5py.h5f.get_obj_count(h5py.h5f.OBJ_ALL, h5py.h5f.OBJ_FILE)
 
     before = open_files()
-    with open_dataset(root, "test") as d:
-        preds = {s.scene_id: Prediction(s.scene_id, s.azimuth[0].astype(float)) for s in d.iter_labels()}
-    find_scene(root, "test-000001").audio
-    find_scene(root, "train/0").audio
-    dataset_stats(root)
-    evaluate(root, "test", preds)
-    verify_dataset(root, ["test"])
-    export_dcase(root, str(tmp_path / "dcase"), splits=["test"], subtype="FLOAT")
+    with pytest.raises(PredictionError) as bad_predictions:
+        evaluate(root, "test", {})
+    with pytest.raises(DatasetError) as bad_index:
+        find_scene(root, "test/99")
+    assert bad_predictions.tb is not None and bad_index.tb is not None  # both frames still alive
     assert open_files() == before
