@@ -212,6 +212,32 @@ def test_sofa_rings_grouping_for_unordered_files(tmp_path):
         assert np.allclose(pos[got.astype(int)], sph_to_cart(*t.positions.T))  # RIR i belongs to position i
 
 
+def test_sofa_lines_in_file_order_are_linear_trajectories(tmp_path):
+    """SpatialScaper's files of TAU's linear rooms: lines parallel to y on both sides of the
+    array at three heights, 1 degree apart, every other line stored the other way round."""
+    lines = []
+    for k, (x, z) in enumerate([(x, z) for x in (1.5, -2.5) for z in (-0.4, 0.0, 0.4)]):
+        y = abs(x) * np.tan(np.radians(np.arange(-65.0, 65.5, 1.0)))
+        lines.append(np.stack([np.full(len(y), x), y[:: -1 if k % 2 else 1], np.full(len(y), z)], -1))
+    pos = np.concatenate(lines)
+    rirs = np.arange(len(pos))[:, None, None] * np.ones((1, 4, 4))
+    b = open_bank(make_sofa(tmp_path / "se203_foa.sofa", rirs, pos, room="se203"))
+    trajs = b.trajectories("se203")
+    assert len(trajs) == 6
+    start = 0
+    for t, line in zip(trajs, lines):
+        assert t.kind == "linear" and not t.closed and len(t) == len(line)
+        want = cart_to_sph(line)
+        assert np.allclose(t.positions[:, 0], want[0]) and np.allclose(t.positions[:, 2], want[2])
+        assert np.array_equal(b.read("se203", t.id, [0, len(t) - 1])[:, 0, 0], [start, start + len(t) - 1])
+        start += len(t)
+    # a walk stays on its line: consecutive knots are neighbours, never a jump across the array
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        tid, idx, times = sample_bank_path(b, "se203", rng, 10.0, 40.0)
+        assert np.all(np.abs(np.diff(idx)) <= 4)
+
+
 def test_sofa_errors(tmp_path):
     pos = _sofa_rings(n=8, els=(0.0,))
     rirs = np.zeros((8, 4, 4))

@@ -19,9 +19,9 @@ file-name suffix; ``mic`` means the DCASE tetrahedral format (``tetra``).
 
 Trajectories: SOFA has no trajectory grouping. With ``grouping="auto"`` the file order
 is used when it is a path: runs of neighbouring positions, split where a step is over
-4x the median step or changes height or horizontal distance by more than ``ring_tol``
-m, kept when they average at least 10 positions (SpatialScaper stores each TAU
-trajectory and height in path order). Otherwise positions are grouped into rings of
+3x both its neighbours or changes height by more than ``ring_tol`` m, kept when they
+average at least 10 positions (SpatialScaper stores each TAU trajectory and height in
+path order, circles and lines alike). Otherwise positions are grouped into rings of
 equal height and equal horizontal distance (gaps over ``ring_tol`` m split them), each
 sorted by azimuth. ``grouping="rings"`` or ``"runs"`` forces one. Ids are ``"g{i}"``.
 """
@@ -212,16 +212,18 @@ def _group(room, pos: np.ndarray, grouping: str, tol: float):
 
 
 def _runs(pos: np.ndarray, tol: float):
-    """Split the file order where a step jumps: 4x the median step, or a change of height or
-    horizontal distance over ``tol`` m in one step (rings and lines keep both smooth)."""
-    if len(pos) < 2:
+    """Split the file order where a step jumps (over 3x both neighbouring steps) or changes
+    height by more than ``tol`` m: rings and lines are smooth at constant height. Steps are
+    compared with their neighbours, not with one typical step, because along a line sampled
+    every degree they grow steadily (as 1/cos² of the angle off its normal), and horizontal
+    distance is no test either: along a line it changes by up to a whole step."""
+    if len(pos) < 3:
         return [np.arange(len(pos))]
     xyz = sph_to_cart(pos[:, 0], pos[:, 1], pos[:, 2])
     d = np.diff(xyz, axis=0)
     jump = np.linalg.norm(d, axis=1)
-    med = float(np.median(jump))
-    d_rh = np.diff(np.hypot(xyz[:, 0], xyz[:, 1]))
-    cut = np.nonzero((jump > max(4.0 * med, 1e-6)) | (np.abs(d[:, 2]) > tol) | (np.abs(d_rh) > tol))[0] + 1
+    near = np.maximum(np.r_[jump[1], jump[:-1]], np.r_[jump[1:], jump[-2]])
+    cut = np.nonzero((jump > np.maximum(3.0 * near, 1e-6)) | (np.abs(d[:, 2]) > tol))[0] + 1
     return [r for r in np.split(np.arange(len(pos)), cut)]
 
 
