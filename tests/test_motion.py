@@ -167,6 +167,16 @@ def test_tau_db_with_room_numbers(tmp_path, demo_corpus):
     rooms = {s: {SceneRecipe.from_json(x).extra["bank_room"] for x in open(os.path.join(out, "plan", f"{s}.jsonl"))}
              for s in ("train", "val", "test")}
     assert rooms["train"] <= {"bomb_shelter", "gym"} and rooms["val"] == {"pb132"} and rooms["test"] == {"pc226"}
+    # a measured room: size known, RT60 and the array's place in the room not
+    from tsel_data.generate import finalize, render_shards
+    from tsel_data.inspect import find_scene, summary
+
+    render_shards(out, progress=False)
+    finalize(out)
+    scene = find_scene(out, "train/0")
+    assert scene.record["array"]["centre"] is None and scene.record["room"]["rt60"] is None
+    text = summary(scene)
+    assert "RT60 unknown" in text and "position in the room unknown" in text
     bad = load_config(preset="paper-measured", corpus_dir=demo_corpus, bank=str(tmp_path / "TAU"),
                       splits={"train": 1, "val": 1, "test": 1})
     with pytest.raises(TselError, match="no room 3"):

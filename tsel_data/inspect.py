@@ -55,18 +55,21 @@ def summary(scene: Scene) -> str:
              f"query: {scene.query!r}"]
     lines.append(f"scenario: {rec.get('scenario', '?')}   motion: {rec.get('motion', '?')}   "
                  f"rir: {rec.get('rir_method', '?')}")
-    room = rec.get("room")
-    if room and room.get("dims"):
-        meas = room.get("rt60_measured")
-        lines.append(f"room: {' x '.join(f'{d:.2f}' for d in room['dims'])} m, RT60 {room.get('rt60', float('nan')):.2f} s "
-                     f"requested, " + (f"{meas:.2f} s measured" if meas is not None else "not measured"))
+    room = rec.get("room") or {}
+    dims = f"{' x '.join(f'{d:.2f}' for d in room['dims'])} m" if room.get("dims") else "size unknown"
+    rt60, meas = room.get("rt60"), room.get("rt60_measured")
+    if room.get("bank"):
+        lines.append(f"room: {room.get('name', '?')} of RIR bank {room['bank']}, {dims}, "
+                     + (f"RT60 {rt60:.2f} s" if rt60 is not None else "RT60 unknown"))
     elif room:
-        lines.append("room: " + ", ".join(f"{k} {v}" for k, v in room.items()))
+        lines.append(f"room: {dims}, " + (f"RT60 {rt60:.2f} s requested, " if rt60 is not None else "")
+                     + (f"{meas:.2f} s measured" if meas is not None else "RT60 not measured"))
     arr = rec.get("array") or {}
     if arr:
         side = f" (side {arr['side']:.3f} m)" if arr.get("side") else ""
-        lines.append(f"array: {arr.get('format', scene.format)}{side} at {_fmt_vec(arr.get('centre', (0, 0, 0)))} m, "
-                     f"front (yaw) {arr.get('yaw', 0.0):.1f} deg")
+        where = (f" at {_fmt_vec(arr['centre'])} m, front (yaw) {arr.get('yaw') or 0.0:.1f} deg"
+                 if arr.get("centre") is not None else ", position in the room unknown (labels are in the array frame)")
+        lines.append(f"array: {arr.get('format', scene.format)}{side}{where}")
     dur = scene.audio.shape[1] / scene.fs if scene.audio is not None else scene.n_frames * scene.label_hop
     if scene.audio is not None:
         peak = float(np.max(np.abs(scene.audio)))
@@ -114,12 +117,12 @@ def write_wav(scene: Scene, path: str, subtype: str = "FLOAT") -> str:
 def source_tracks(scene: Scene) -> tuple[list[np.ndarray | None], np.ndarray, float]:
     """Room-frame xyz per frame [F, 3] of every source (None if positionless).
 
-    Also returns the array centre and yaw used. Scenes without a room (RIR banks) are
-    drawn in the array frame (centre 0, yaw 0).
+    Also returns the array centre and yaw used. Scenes that do not know where the array
+    stood (measured RIR banks) are drawn in the array frame (centre 0, yaw 0).
     """
     arr = scene.record.get("array") or {}
     room = scene.record.get("room") or {}
-    if room.get("dims") and not room.get("bank") and arr.get("centre") is not None:
+    if room.get("dims") and arr.get("centre") is not None:
         centre, yaw = np.asarray(arr["centre"], dtype=np.float64), float(arr.get("yaw", 0.0))
     else:
         centre, yaw = np.zeros(3), 0.0
@@ -152,8 +155,8 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
     rec = scene.record
     srcs = rec.get("sources") or [{} for _ in range(scene.n_sources)]
     tracks, centre, yaw = source_tracks(scene)
-    # bank scenes know their room's size but not where the array stood: array frame
-    dims = None if (rec.get("room") or {}).get("bank") else (rec.get("room") or {}).get("dims")
+    # measured-bank scenes may know their room's size but not where the array stood: array frame
+    dims = (rec.get("room") or {}).get("dims") if (rec.get("array") or {}).get("centre") is not None else None
 
     # --- room from above ----------------------------------------------------------
     if dims:

@@ -138,7 +138,7 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
         "motion": "moving" if any(s.moving for s in recipe.sources) else "static",
         "rir_method": recipe.rir_method,
         "room": _room_record(recipe, rt60_measured),
-        "array": {"format": fmt, "centre": list(recipe.array.centre), "yaw": recipe.array.yaw,
+        "array": {"format": fmt, **_array_pose(recipe),
                   "side": recipe.array.side, "mic_positions": np.round(mics.astype(np.float64), 6).tolist()},
         "sources": [
             {"role": s.role, "clip_id": s.clip_id, "audio": s.audio, "captions": list(s.captions),
@@ -167,6 +167,19 @@ def _room_record(recipe: SceneRecipe, rt60_measured) -> dict:
     return {"name": recipe.extra["bank_room"], "bank": recipe.extra["bank"],
             "dims": info.get("dims", info.get("dimensions")),
             "rt60": info.get("rt60"), "rt60_measured": None}
+
+
+def _array_pose(recipe: SceneRecipe) -> dict:
+    """The array's place in the room: the recipe's, or for bank scenes what the bank says
+    (simulated banks know it; measured ones do not: null)."""
+    if recipe.room is not None:
+        return {"centre": list(recipe.array.centre), "yaw": recipe.array.yaw}
+    from .plan import open_bank_cached
+
+    arr = open_bank_cached(recipe.extra["bank"]).room_info(recipe.extra["bank_room"]).get("array") or {}
+    if arr.get("centre") is None or arr.get("yaw") is None:
+        return {"centre": None, "yaw": None}
+    return {"centre": [float(v) for v in arr["centre"]], "yaw": float(arr["yaw"])}
 
 
 def _round(a: np.ndarray, nd: int = 3) -> list:
