@@ -195,3 +195,30 @@ def test_moving_source_knots_share_one_late_tail():
     late = slice(int(0.2 * 24000), None)  # well after the transition to the stochastic tail
     np.testing.assert_array_equal(one[0, :, late], one[2, :, late])
     assert abs(np.corrcoef(many[0, 0, late], many[2, 0, late])[0, 1]) < 0.1
+
+
+def test_a_split_without_rooms_never_draws_another_splits_rooms(tmp_path, demo_corpus):
+    from bankfixtures import make_tau_db
+    from tsel_data.check import bank_problems
+    from tsel_data.config import load_config
+    from tsel_data.errors import ConfigError
+    from tsel_data.plan import open_bank_cached, split_rooms
+
+    make_tau_db(tmp_path / "TAU", rooms=(("bomb_shelter", 1), ("gym", 2), ("pb132", 3), ("se203", 8), ("tb103", 9)), L=16)
+    bank = open_bank_cached(str(tmp_path / "TAU"))
+
+    def cfg(**rooms):
+        sets = [f"splits.{k}.rooms={v!r}".replace("'", '"') for k, v in rooms.items()]
+        return load_config(preset="paper-measured", corpus_dir=demo_corpus, bank=str(tmp_path / "TAU"),
+                           overrides=sets, splits={"train": 2, "val": 1, "test": 1})
+
+    c = cfg(train=[1, 2], test=[])  # val keeps the preset's room 8; test names none
+    assert split_rooms(c, "test", bank) == ["pb132", "tb103"]      # not val's se203, not train's
+    assert split_rooms(c, "train", bank) == ["bomb_shelter", "gym"]
+    assert bank_problems(c) == []
+    c = cfg(train=[], val=[], test=[])  # nobody splits by room: every split may use every room
+    assert split_rooms(c, "test", bank) == bank.rooms
+    c = cfg(train=[1, 2, 3, 9], test=[])  # with val's 8, nothing is left for test
+    with pytest.raises(ConfigError, match="splits.test.rooms is empty and every room"):
+        split_rooms(c, "test", bank)
+    assert any("splits.test.rooms is empty" in str(e) for e in bank_problems(c))

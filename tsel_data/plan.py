@@ -330,11 +330,18 @@ def open_bank_cached(path: str):
 
 
 def split_rooms(cfg: Config, split: str, bank) -> list[str]:
-    """The bank rooms a split may use: ``splits.NAME.rooms`` (names or numbers), else all."""
+    """The bank rooms a split may use: ``splits.NAME.rooms`` (names or numbers); if empty,
+    the rooms no other split names (all of them when no split names any), so an
+    unlisted split never draws another split's rooms."""
     wanted = cfg.splits[split].rooms
-    if not wanted:
-        return list(bank.rooms)
-    return [bank.resolve_room(r) for r in wanted]
+    if wanted:
+        return [bank.resolve_room(r) for r in wanted]
+    claimed = {bank.resolve_room(r) for name, sp in cfg.splits.items() if name != split for r in sp.rooms}
+    free = [r for r in bank.rooms if r not in claimed]
+    if not free:
+        raise ConfigError(f"splits.{split}.rooms is empty and every room of {bank.source} is named by another split; "
+                          f"give splits.{split}.rooms its own rooms")
+    return free
 
 
 
