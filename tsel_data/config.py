@@ -214,7 +214,7 @@ def validate_config(cfg: Config, where: str = "config", smallest_room: bool = Tr
         if val not in allowed:
             name = key if sec is None else f"{sec}.{key}"
             raise ConfigError(f"{where}: {name} = {val!r} is not one of {', '.join(allowed)}")
-    if cfg.scene.path.kind not in ("const", "choose") or not set(cfg.scene.path.options) <= {"arc", "line"}:
+    if cfg.scene.path.kind not in ("const", "choose") or not all(isinstance(o, str) and o in ("arc", "line") for o in cfg.scene.path.options):
         raise ConfigError(f"{where}: scene.path must be \"arc\", \"line\" or [\"choose\", [\"arc\", \"line\"]], "
                           f"got {cfg.scene.path.to_json()!r}")
     for sc in cfg.scene.scenario.options:
