@@ -222,3 +222,37 @@ def test_a_split_without_rooms_never_draws_another_splits_rooms(tmp_path, demo_c
     with pytest.raises(ConfigError, match="splits.test.rooms is empty and every room"):
         split_rooms(c, "test", bank)
     assert any("splits.test.rooms is empty" in str(e) for e in bank_problems(c))
+
+
+def test_banks_holding_two_formats_are_used_in_the_configs_format(tmp_path, demo_corpus):
+    """A TAU-SRIR DB folder (foa and mic) and a folder of SpatialScaper's _foa and _mic SOFA
+    files serve scene.format = "tetra" and "foa" as they are, with no import."""
+    from bankfixtures import make_sofa, make_tau_db
+    from tsel_data.config import load_config
+    from tsel_data.geometry import sph_to_cart
+
+    make_tau_db(tmp_path / "TAU", rooms=(("bomb_shelter", 1), ("gym", 2), ("se203", 8), ("tb103", 9)), L=32)
+    pos = sph_to_cart(np.arange(24) * 15.0 - 180.0, 0.0, 1.5)
+    (tmp_path / "SS").mkdir()
+    for fmt in ("foa", "mic"):
+        for room in ("gym", "tc352"):
+            make_sofa(tmp_path / "SS" / f"{room}_{fmt}.sofa", np.full((24, 4, 16), 1.0 if fmt == "foa" else 2.0), pos,
+                      room=room, listener_name=fmt)
+    for bank, fmt, rooms in ((tmp_path / "TAU", "tetra", "[1, 2]"), (tmp_path / "SS", "foa", '["gym"]'),
+                             (tmp_path / "SS", "tetra", '["gym"]')):
+        over = ["audio.duration=1.0", f'scene.format="{fmt}"', f"splits.train.rooms={rooms}"]
+        if bank.name == "SS":
+            over += ['splits.val.rooms=["tc352"]', "splits.test.rooms=[]"]
+        cfg = load_config(preset="paper-measured", corpus_dir=demo_corpus, bank=str(bank), overrides=over,
+                          splits={"train": 2, "val": 1, "test": 0})
+        out = str(tmp_path / f"out-{bank.name}-{fmt}")
+        plan_dataset(cfg, out)
+        r = SceneRecipe.from_json(open(os.path.join(out, "plan", "train.jsonl")).readline())
+        scene = render_scene(r)
+        assert scene.record["array"]["format"] == fmt and np.all(np.isfinite(scene.audio))
+        if bank.name == "SS":  # the mic files hold 2.0, the foa files 1.0: the right files were read
+            from tsel_data.plan import open_bank_cached
+
+            b = open_bank_cached(r.extra["bank"], fmt)
+            src = r.sources[0].bank
+            assert np.all(b.read(src["room"], src["trajectory"], src["indices"][:1]) == (1.0 if fmt == "foa" else 2.0))

@@ -207,7 +207,9 @@ def bank_problems(cfg: Config) -> list[TselError]:
     if cfg.room.bank.startswith("builtin:"):
         return []  # built by the run itself to match the config (plan.resolve_bank)
     try:
-        bank = open_bank(os.path.abspath(os.path.expanduser(cfg.room.bank)))
+        path = os.path.abspath(os.path.expanduser(cfg.room.bank))
+        # a folder (TAU-SRIR DB, SpatialScaper's SOFA files) may hold several formats: take the config's
+        bank = open_bank(path, format=fmt if os.path.isdir(path) else None)
     except TselError as e:
         return [e]
     except OSError as e:

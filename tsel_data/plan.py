@@ -240,7 +240,7 @@ def _place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, ba
     from .banks import sample_bank_path, sample_bank_point
     from .timevarying import interpolate_positions
 
-    bank = open_bank_cached(bank_path)
+    bank = open_bank_cached(bank_path, cfg.scene.format)
     rooms = split_rooms(cfg, split, bank)
     room_name = rooms[int(rng.integers(len(rooms)))]
     info = bank.room_info(room_name)
@@ -306,7 +306,7 @@ def resolve_bank(cfg: Config, out_dir: str) -> str | None:
     problems = bank_problems(replace(cfg, room=replace(cfg.room, bank=path)))
     if problems:
         raise problems[0]
-    bank = open_bank_cached(path)
+    bank = open_bank_cached(path, cfg.scene.format)
     bank.require_fs(cfg.audio.fs)
     if bank.format != cfg.scene.format:
         raise GeometryError(f"{path}: the bank holds {bank.format} RIRs but scene.format is {cfg.scene.format}; "
@@ -320,13 +320,16 @@ def resolve_bank(cfg: Config, out_dir: str) -> str | None:
 _BANKS: dict = {}
 
 
-def open_bank_cached(path: str):
-    """One open bank per process and path (banks read lazily, so this stays small)."""
+def open_bank_cached(path: str, fmt: str | None = None):
+    """One open bank per process, path and array format (banks read lazily, so this stays
+    small). ``fmt`` picks the format where a bank holds several (TAU's foa and mic, a
+    folder of SpatialScaper's _foa and _mic SOFA files)."""
     from .banks import open_bank
 
-    if path not in _BANKS:
-        _BANKS[path] = open_bank(path)
-    return _BANKS[path]
+    key = (path, fmt)
+    if key not in _BANKS:
+        _BANKS[key] = open_bank(path, format=fmt)
+    return _BANKS[key]
 
 
 def split_rooms(cfg: Config, split: str, bank) -> list[str]:

@@ -93,7 +93,7 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
             from .plan import open_bank_cached
 
             b = s.bank
-            rirs = open_bank_cached(recipe.extra["bank"]).views(b["room"], b["trajectory"], b["indices"])
+            rirs = open_bank_cached(recipe.extra["bank"], recipe.array.format).views(b["room"], b["trajectory"], b["indices"])
             if len(rirs) == 1:
                 images[k] = convolve(dry[k:k + 1], rirs[0][None], n)[0]
             else:
@@ -163,7 +163,7 @@ def _room_record(recipe: SceneRecipe, rt60_measured) -> dict:
         return {"dims": list(recipe.room.dims), "rt60": recipe.room.rt60, "rt60_measured": rt60_measured}
     from .plan import open_bank_cached
 
-    info = open_bank_cached(recipe.extra["bank"]).room_info(recipe.extra["bank_room"])
+    info = open_bank_cached(recipe.extra["bank"], recipe.array.format).room_info(recipe.extra["bank_room"])
     return {"name": recipe.extra["bank_room"], "bank": recipe.extra["bank"],
             "dims": info.get("dims", info.get("dimensions")),
             "rt60": info.get("rt60"), "rt60_measured": None}
@@ -176,7 +176,7 @@ def _array_pose(recipe: SceneRecipe) -> dict:
         return {"centre": list(recipe.array.centre), "yaw": recipe.array.yaw}
     from .plan import open_bank_cached
 
-    arr = open_bank_cached(recipe.extra["bank"]).room_info(recipe.extra["bank_room"]).get("array") or {}
+    arr = open_bank_cached(recipe.extra["bank"], recipe.array.format).room_info(recipe.extra["bank_room"]).get("array") or {}
     if arr.get("centre") is None or arr.get("yaw") is None:
         return {"centre": None, "yaw": None}
     return {"centre": [float(v) for v in arr["centre"]], "yaw": float(arr["yaw"])}

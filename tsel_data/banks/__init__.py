@@ -300,7 +300,9 @@ def open_bank(path_or_dir, kind: str = "auto", format: str | None = None, **opti
 
         bank = NativeBank(p, **options)
         if format is not None and check_format(format) != bank.format:
-            raise BankError(f"{p}: bank holds {bank.format} RIRs, not {check_format(format)}")
+            want = check_format(format)
+            raise BankError(f"{p}: the bank holds {bank.format} RIRs, not {want}; use a {want} bank "
+                            f"(or scene.format = \"{bank.format}\")")
         return bank
     raise BankError(f"{p}: unknown bank kind {kind!r}; expected auto, tau, sofa or native")
 

@@ -65,9 +65,10 @@ class SofaBank(Bank):
             fmts = {i["format"] for i in infos}
             if None in fmts:
                 bad = next(i["path"] for i in infos if i["format"] is None)
-                raise BankError(f"{bad}: cannot tell the array format (no ListenerShortName, no _foa/_mic suffix); pass format=foa|tetra|mic4")
+                raise BankError(f"{bad}: cannot tell the array format (no ListenerShortName, no _foa/_mic suffix); "
+                               f"give it (--format foa|tetra|mic4, or format= in Python)")
             if len(fmts) > 1:
-                raise BankError(f"{self.source}: holds {sorted(fmts)} RIRs; choose one with format=")
+                raise BankError(f"{self.source}: holds {sorted(fmts)} RIRs; choose one (--format, or format= in Python)")
             want = fmts.pop()
         else:
             infos = [i for i in infos if i["format"] in (None, want)]
