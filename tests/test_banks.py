@@ -1,4 +1,7 @@
 """RIR banks: TAU-SRIR DB and SOFA layouts, the native format, paths, CLI, errors."""
+import subprocess
+import sys
+
 import h5py
 import numpy as np
 import pytest
@@ -318,6 +321,18 @@ def test_build_demo_bank_cli(tmp_path):
         assert abs(n - dist / 343.0 * b.fs) < 3
         g = rir[:, n] / rir[0, n]
         assert np.allclose(g, foa_gains(az, el), atol=0.05)
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--rt60", "0.8,0.3"], "0 < lo <= hi"), (["--fs", "0"], "below 8000 Hz"), (["--step", "400"], "in (0, 90]"),
+    (["--demo", "--step", "3"], "drop --step or --demo"), (["--rir-seconds", "-1"], "must be positive"),
+])
+def test_build_rejects_bad_options(tmp_path, args, needle):
+    small = [] if "--demo" in args else ["--rooms", "1"]
+    r = subprocess.run([sys.executable, "-c", "from tsel_data.cli import main; main()", "bank", "build",
+                        "--out", str(tmp_path / "b.h5"), *small, *args], capture_output=True, text=True)
+    assert r.returncode == 2 and needle in r.stderr and "Traceback" not in r.stderr and len(r.stderr.splitlines()) == 1
+    assert not (tmp_path / "b.h5").exists()
 
 
 # --- paths and labels ---------------------------------------------------------------------------

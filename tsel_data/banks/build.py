@@ -49,8 +49,16 @@ def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int
         raise BankError("the pyroomacoustics method renders omni capsules only; build FOA banks with method 'hybrid' or 'ism'")
     distances = tuple(float(d) for d in distances)
     heights = tuple(float(h) for h in heights)
-    if not distances or min(distances) <= 0 or step_deg <= 0 or n_rooms < 1:
-        raise BankError("bank build needs positive distances, a positive step and at least one room")
+    if not distances or min(distances) <= 0 or n_rooms < 1:
+        raise BankError("bank build needs positive distances and at least one room")
+    if not 0 < step_deg <= 90:
+        raise BankError(f"bank build: step {step_deg} deg must be in (0, 90], so a circle holds at least 4 positions")
+    if len(rt60) != 2 or not 0 < rt60[0] <= rt60[1]:
+        raise BankError(f"bank build: RT60 range {tuple(rt60)} must be 'lo,hi' seconds with 0 < lo <= hi")
+    if int(fs) < 8000:
+        raise BankError(f"bank build: sample rate {fs} Hz is below 8000 Hz")
+    if rir_seconds is not None and rir_seconds <= 0:
+        raise BankError(f"bank build: RIR length {rir_seconds} s must be positive")
     az = np.arange(-180.0, 180.0 - 1e-9, float(step_deg))
     rooms, info = {}, {}
     for i in range(n_rooms):

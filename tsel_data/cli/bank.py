@@ -118,6 +118,13 @@ def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side,
     if len(kw["rt60"]) != 2:
         raise BankError("--rt60: give a range 'lo,hi' in seconds")
     if demo:
+        ctx = click.get_current_context()
+        flags = {"n_rooms": "--rooms", "distances": "--distances", "heights": "--heights", "step_deg": "--step",
+                 "rt60": "--rt60"}
+        given = [f for p, f in flags.items() if ctx.get_parameter_source(p) is not click.core.ParameterSource.DEFAULT]
+        if given:
+            raise BankError(f"--demo sets the rooms, distances, heights, step and RT60 itself; drop "
+                            f"{', '.join(given)} or --demo")
         kw.update({k: v for k, v in DEMO.items() if k != "n_rooms"})
         n_rooms = DEMO["n_rooms"]
     path = build_bank(out, format=fmt, n_rooms=n_rooms, seed=seed, **kw)
