@@ -440,3 +440,13 @@ def test_pickled_native_bank_maps_again(tmp_path):
     v = nb.views("room", 0, [9])[0]
     nb2 = pickle.loads(pickle.dumps(nb))  # what a worker process receives
     assert np.array_equal(nb2.views("room", 0, [9])[0], v)
+
+
+def test_damaged_bank_file_is_named(tmp_path):
+    make_tau_db(tmp_path, rooms=(("gym", 2),), n_traj=1, heights=(1.2,), n_doa=8, L=4096, empty=())
+    path = tmp_path / "rirs_02_gym.mat"
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])  # an interrupted download
+    b = open_bank(tmp_path)
+    assert len(b.trajectories("gym")) == 1  # metadata lives in rirdata.mat: still fine
+    with pytest.raises(BankError, match=r"rirs_02_gym.mat: cannot be read as HDF5 \(truncated.*download it again"):
+        b.read("gym", "t0h0", [0])

@@ -30,7 +30,14 @@ class H5Pool:
         key = str(path)
         f = self._files.get(key)
         if f is None or not f.id.valid:
-            f = h5py.File(key, "r")
+            try:
+                f = h5py.File(key, "r")
+            except OSError as e:
+                from . import BankError
+
+                why = str(e).split("(")[-1].rstrip(")") if "(" in str(e) else str(e)
+                raise BankError(f"{key}: cannot be read as HDF5 ({why}); the file is damaged or incomplete, "
+                                f"copy or download it again") from None
             self._files[key] = f
         return f
 
