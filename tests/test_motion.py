@@ -7,7 +7,7 @@ import pytest
 
 from tsel_data.catalog import build_catalog
 from tsel_data.generate import generate, plan_dataset
-from tsel_data.geometry import azimuth_difference
+from tsel_data.geometry import azimuth_difference, sph_to_cart
 from tsel_data.plan import CatalogView, plan_split, resolve_bank
 from tsel_data.recipe import SceneRecipe
 from tsel_data.render import render_scene, source_labels
@@ -25,10 +25,15 @@ def test_simulated_arcs_follow_their_speed(small_config, tmp_path):
             assert knots[0, 0] <= 0 and knots[-1, 0] >= r.duration  # covers the whole scene
             assert np.all(np.diff(knots[:, 0]) <= 0.1 + 1e-9)        # an RIR at least every 100 ms
             az, el, dist = source_labels(r, k)
-            step = np.diff(np.unwrap(np.radians(az)))
-            # 30 deg/s at 0.1 s frames: 3 degrees per frame, one direction
-            np.testing.assert_allclose(np.abs(np.degrees(step)), 3.0, atol=1e-3)
-            assert np.ptp(dist) < 1e-4 and np.ptp(el) < 1e-3          # an arc around the array
+            u = sph_to_cart(az, el, 1.0)
+            arc = np.degrees(np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1, 1)))
+            # 30 deg/s at 0.1 s frames: 3 degrees of arc per frame as seen from the array ...
+            np.testing.assert_allclose(arc, 3.0, atol=0.01)
+            # ... so the azimuth turns faster by 1 / cos(elevation), always the same way
+            step = np.degrees(np.diff(np.unwrap(np.radians(az))))
+            np.testing.assert_allclose(np.abs(step), 3.0 / np.cos(np.radians(el[0])), atol=0.01)
+            assert np.all(np.sign(step) == np.sign(step[0]))
+            assert np.ptp(dist) < 2e-3 and np.ptp(el) < 0.1          # an arc around the array
         assert SceneRecipe.from_json(r.to_json()) == r
 
 
@@ -49,10 +54,12 @@ def test_simulated_lines_pass_the_array_at_their_speed(small_config, tmp_path):
             v = np.linalg.norm(step, axis=1) / np.diff(knots[:, 0])
             assert np.ptp(v) < 1e-3                                                   # at constant speed
             r_close = abs(p[0, 0] * step[0, 1] - p[0, 1] * step[0, 0]) / np.linalg.norm(step[0])  # closest approach
-            assert v[0] == pytest.approx(np.radians(20.0) * r_close, rel=1e-4)        # sweeping 20 deg/s there
+            d_close = np.hypot(r_close, knots[0, 3] - r.array.centre[2])
+            assert v[0] == pytest.approx(np.radians(20.0) * d_close, rel=1e-4)        # sweeping 20 deg/s there
             az, el, dist = source_labels(r, k)
-            rate = np.abs(np.degrees(np.diff(np.unwrap(np.radians(az))))) / 0.1
-            assert rate.max() <= 20.0 + 1e-3 and rate.max() > 15.0                    # fastest when closest
+            u = sph_to_cart(az, el, 1.0)
+            rate = np.degrees(np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1, 1))) / 0.1
+            assert rate.max() <= 20.0 + 1e-2 and rate.max() > 15.0                    # fastest when closest
             assert np.all(np.sign(np.diff(np.unwrap(np.radians(az)))) == np.sign(np.diff(np.unwrap(np.radians(az))))[0])
             assert dist.min() >= 1.0 - 1e-3 and dist.max() > dist.min() + 0.1         # passes by, not around
 

@@ -168,7 +168,7 @@ def _place_sources(cfg, rng, spatial, moving, room: Room, centre, yaw):
             r_h = math.sqrt(d * d - dz * dz)
             az = float(rng.uniform(-180.0, 180.0))
             if mv:
-                place = _moving_path(cfg, rng, room, centre, yaw, az, r_h, h, fc)
+                place = _moving_path(cfg, rng, room, centre, yaw, az, r_h, d, h, fc)
                 if place is None:
                     continue
                 track = place.pop("_track")
@@ -194,31 +194,33 @@ KNOT_HOP_S, KNOT_STEP_DEG = 0.1, 4.0
 PATHS = ("arc", "line")
 
 
-def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, h: float, fc: np.ndarray):
+def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, d: float, h: float, fc: np.ndarray):
     """A simulated moving source at constant height, or None if it leaves the room:
     ``{"path": ((t, x, y, z), ...) room frame, "_track": azimuth (array frame) at the label frames}``.
 
-    ``arc``: around the array at horizontal distance r_h, azimuth az0 + dir·ω·t.
-    ``line``: a straight pass, perpendicular to azimuth az0 at horizontal distance r_h
-    when closest (at a time drawn over the clip), at the speed v = ω·r_h that sweeps ω
-    degrees per second there, the fastest the azimuth changes along the line. ω is
-    ``scene.speed``; either way the azimuth moves at most ω °/s, so knots every
-    min(100 ms, 4°/ω) keep a knot at least every 100 ms and every 4°.
+    ω = ``scene.speed`` is the angular speed seen from the array (great-circle °/s, as
+    for bank walks). ``arc``: around the array at horizontal distance r_h (distance d),
+    so the azimuth turns at ω·d/r_h. ``line``: a straight pass, perpendicular to azimuth
+    az0 at horizontal distance r_h when closest (at a time drawn over the clip), at the
+    speed v = ω·d that sweeps ω °/s there, the fastest it gets; the azimuth then turns at
+    most ω·d/r_h. Knots every min(100 ms, 4° / that azimuth rate): a knot at least every
+    100 ms and every 4° of azimuth.
     """
     kind = cfg.scene.path.sample(rng)
     speed = float(cfg.scene.speed.sample(rng))
     direction = 1 if rng.random() < 0.5 else -1
     dur = cfg.audio.duration
-    hop = min(KNOT_HOP_S, KNOT_STEP_DEG / speed) if speed > 0 else dur
+    az_rate = speed * d / r_h  # °/s of azimuth: the arc's, and the line's at its closest
+    hop = min(KNOT_HOP_S, KNOT_STEP_DEG / az_rate) if speed > 0 else dur
     t = np.arange(0.0, dur + hop - 1e-9, hop)
     a0 = math.radians(az0 + yaw)
     if kind == "arc":
-        a = np.radians(az0 + yaw + direction * speed * t)
+        a = np.radians(az0 + yaw + direction * az_rate * t)
         x, y = centre[0] + r_h * np.cos(a), centre[1] + r_h * np.sin(a)
-        track = az0 + direction * speed * fc
+        track = az0 + direction * az_rate * fc
     else:
         t_close = float(rng.uniform(0.0, dur))
-        v = math.radians(speed) * r_h
+        v = math.radians(speed) * d
         s = direction * v * (t - t_close)  # signed distance along the line from the closest point
         x = centre[0] + r_h * math.cos(a0) - s * math.sin(a0)
         y = centre[1] + r_h * math.sin(a0) + s * math.cos(a0)
