@@ -157,9 +157,10 @@ def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: in
             errs.append(float(azimuth_difference(est, truth)))
             ests.append(float(wrap_azimuth(est)))
             truths.append(truth)
-        err = float(np.median(errs))
+        i = int(np.argsort(errs)[len(errs) // 2])  # the median window: its label and estimate explain the error
         results.append({"source": s, "role": roles[s] if s < len(roles) else "", "frames": int(len(dom)),
-                        "label": truths[0], "estimate": ests[0], "error": err, "agree": err <= tolerance})
+                        "windows": len(groups), "label": truths[i], "estimate": ests[i], "error": errs[i],
+                        "agree": errs[i] <= tolerance})
     mode = "single"
     if not results and directional:
         # Additive sources are the same signal on every channel: their zero-lag peak would
@@ -216,7 +217,9 @@ class VerifyReport:
             lines.append(f"{len(bad)} scene(s) disagree:")
             for name, d in bad[:max_list]:
                 worst = max(d["sources"], key=lambda r: r["error"])
-                lines.append(f"  {d['scene_id']}: source {worst['source']} ({worst['role']}) labelled "
+                n = worst.get("windows", 1)
+                where = f"in the median of {n} windows, " if n > 1 else ""
+                lines.append(f"  {d['scene_id']}: source {worst['source']} ({worst['role']}) {where}labelled "
                              f"{worst['label']:.1f} deg, audio says {worst['estimate']:.1f} deg "
                              f"(error {worst['error']:.1f}, {d['mode']} mode)")
             if len(bad) > max_list:
