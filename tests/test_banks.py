@@ -325,7 +325,9 @@ def test_build_demo_bank_cli(tmp_path):
 
 @pytest.mark.parametrize("args,needle", [
     (["--rt60", "0.8,0.3"], "0 < lo <= hi"), (["--fs", "0"], "below 8000 Hz"), (["--step", "400"], "in (0, 90]"),
-    (["--demo", "--step", "3"], "drop --step or --demo"), (["--rir-seconds", "-1"], "must be positive"),
+    (["--demo", "--step", "3"], "drop --step or --demo"), (["--rir-seconds", "-1"], "at least one sample"),
+    (["--demo", "--rir-seconds", "0.00001"], "at least one sample"), (["--distances", "nan"], "must be finite"),
+    (["--side", "-1"], "side -1.0 m must be positive"),
 ])
 def test_build_rejects_bad_options(tmp_path, args, needle):
     small = [] if "--demo" in args else ["--rooms", "1"]

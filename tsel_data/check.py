@@ -228,9 +228,7 @@ def bank_problems(cfg: Config) -> list[TselError]:
         used: dict[str, str] = {}
         for split, sp in cfg.splits.items():
             if not sp.count:
-                continue
-            if not sp.rooms:
-                continue  # the rooms no split names (plan.split_rooms), checked below
+                continue  # a split made from another bank (or later) may name rooms this one lacks
             for key in sp.rooms:
                 try:
                     room = bank.resolve_room(key)

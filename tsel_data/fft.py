@@ -3,9 +3,10 @@ wraps): faster here on the batched float32 transforms the renderers do (rows of 
 1.04 vs 1.23 ns per point forward, 1.40 vs 1.58 inverse), and it writes into buffers the
 caller owns, so a render does not fault in fresh pages for every spectrum.
 
-One trap, measured: when output rows lie a power-of-two number of bytes apart, ducc0's
-inverse slows 2-2.5x (cache-set aliasing across the rows it transforms together). Rows
-from :func:`empty` are padded so they never are; :func:`irfft` allocates that way.
+One trap, measured: when output rows lie a large power-of-two number of bytes apart,
+ducc0's inverse slows 2-2.5x (cache-set aliasing across the rows it transforms
+together; seen from 8192-point rows up). Rows from :func:`empty` whose length is a
+multiple of 512 are padded; :func:`rfft` and :func:`irfft` allocate that way.
 """
 from __future__ import annotations
 

@@ -341,7 +341,13 @@ def split_rooms(cfg: Config, split: str, bank) -> list[str]:
     wanted = cfg.splits[split].rooms
     if wanted:
         return [bank.resolve_room(r) for r in wanted]
-    claimed = {bank.resolve_room(r) for name, sp in cfg.splits.items() if name != split for r in sp.rooms}
+    claimed = set()
+    for name, sp in cfg.splits.items():
+        for r in sp.rooms if name != split else ():
+            try:
+                claimed.add(bank.resolve_room(r))
+            except TselError:
+                pass  # not in this bank, so never drawn from it (tsel check reports it for splits made now)
     free = [r for r in bank.rooms if r not in claimed]
     if not free:
         raise ConfigError(f"splits.{split}.rooms is empty and every room of {bank.source} is named by another split; "

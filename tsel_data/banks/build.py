@@ -49,6 +49,14 @@ def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int
         raise BankError("the pyroomacoustics method renders omni capsules only; build FOA banks with method 'hybrid' or 'ism'")
     distances = tuple(float(d) for d in distances)
     heights = tuple(float(h) for h in heights)
+    numbers = {"distances": distances, "heights": heights, "RT60": tuple(rt60), "step": (step_deg,), "side": (side,)}
+    for name, vals in numbers.items():
+        if not all(np.isfinite(float(v)) for v in vals if v is not None):
+            raise BankError(f"bank build: {name} {vals} must be finite numbers")
+    if fmt == "mic4" and not (side or 0) > 0:
+        raise BankError(f"bank build: the mic4 square's side {side} m must be positive")
+    if rir_seconds is not None and not (np.isfinite(rir_seconds) and round(rir_seconds * fs) >= 1):
+        raise BankError(f"bank build: RIR length {rir_seconds} s must be at least one sample at {fs} Hz")
     if not distances or min(distances) <= 0 or n_rooms < 1:
         raise BankError("bank build needs positive distances and at least one room")
     if not 0 < step_deg <= 90:
@@ -57,8 +65,6 @@ def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int
         raise BankError(f"bank build: RT60 range {tuple(rt60)} must be 'lo,hi' seconds with 0 < lo <= hi")
     if int(fs) < 8000:
         raise BankError(f"bank build: sample rate {fs} Hz is below 8000 Hz")
-    if rir_seconds is not None and rir_seconds <= 0:
-        raise BankError(f"bank build: RIR length {rir_seconds} s must be positive")
     az = np.arange(-180.0, 180.0 - 1e-9, float(step_deg))
     rooms, info = {}, {}
     for i in range(n_rooms):
