@@ -23,7 +23,6 @@ import tempfile
 import time
 
 import numpy as np
-import scipy.fft as sfft
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 

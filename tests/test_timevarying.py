@@ -4,9 +4,28 @@ import pytest
 
 import tsel_data.timevarying as tv
 from tsel_data.geometry import foa_gains
-from tsel_data.timevarying import interpolate_positions, knot_weights, render_moving, render_static
+from tsel_data.timevarying import interpolate_positions, render_moving, render_static
 
 FS = 8000
+
+
+def knot_weights(times, fs: float, n: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """The model's definition, independent of the renderer: w_k(n), the crossfade weight of knot ``k`` at sample ``n`` (broadcasting arrays).
+
+    Linear between neighbouring knots, 1 before the first and after the last knot; the
+    weights of all knots sum to 1 at every sample.
+    """
+    p = np.asarray(times, dtype=np.float64) * fs
+    K = len(p)
+    k = np.asarray(k)
+    n = np.asarray(n, dtype=np.float64)
+    pk = p[k]
+    left = p[np.maximum(k - 1, 0)]
+    right = p[np.minimum(k + 1, K - 1)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rise = np.where(k == 0, 1.0, (n - left) / (pk - left))
+        fall = np.where(k == K - 1, 1.0, (right - n) / (right - pk))
+    return np.clip(np.where(n <= pk, rise, fall), 0.0, 1.0)
 
 
 def _brute(x, h, times, fs):

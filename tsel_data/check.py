@@ -240,29 +240,19 @@ def bank_problems(cfg: Config) -> list[TselError]:
                         f"splits.{split}.rooms: room {room} is also used by split {used[room]}; a room in two splits "
                         f"leaks its acoustics into evaluation; give each split its own rooms"))
                 used.setdefault(room, split)
-        # splits without rooms share the rooms no split names (plan.split_rooms)
         unlisted = [s for s, sp in cfg.splits.items() if sp.count and not sp.rooms]
-        claimed = set(used) | {r for sp in cfg.splits.values() if not sp.count for r in _resolvable(bank, sp.rooms)}
-        free = [r for r in bank.rooms if r not in claimed]
-        if unlisted and not free:
-            out.append(ConfigError(f"splits.{unlisted[0]}.rooms is empty and every room of {bank.source} is named by "
-                                   f"another split; give splits.{unlisted[0]}.rooms its own rooms"))
-        for room in free if unlisted else ():
-            used.setdefault(room, unlisted[0])
+        if unlisted:
+            from .plan import split_rooms
+
+            try:  # the rooms no split names, shared by every split without rooms
+                for room in split_rooms(cfg, unlisted[0], bank):
+                    used.setdefault(room, unlisted[0])
+            except ConfigError as e:
+                out.append(e)
         for room in used:
             e = _room_positions_problem(bank, room)
             if e:
                 out.append(e)
-    return out
-
-
-def _resolvable(bank, keys) -> list[str]:
-    out = []
-    for k in keys:
-        try:
-            out.append(bank.resolve_room(k))
-        except TselError:
-            pass
     return out
 
 

@@ -64,7 +64,7 @@ class SceneConfig:
     motion: str = "static"  # static | moving | mixed
     moving_fraction: float = 0.5
     speed: Dist = _d(["choose", [10.0, 20.0, 40.0]])  # degrees/s, bank walks and simulated paths
-    path: Dist = _d("arc")  # simulated moving sources: arc | line (or a choose of both)
+    path: Dist = _d("arc")  # simulated moving sources: one of PATHS (or a choose of them)
 
 
 @dataclass(frozen=True)
@@ -120,6 +120,7 @@ SECTIONS = {
     "array": ArrayConfig, "sources": SourcesConfig, "output": OutputConfig,
 }
 TOP_KEYS = ("name", "seed", "on_bad_clip", "splits", *SECTIONS)
+PATHS = ("arc", "line")  # how simulated moving sources move (plan._moving_path)
 CHOICES = {
     ("corpus", "format"): ("audiocaps", "clotho", "wavcaps", "plain", "auto"),
     ("corpus", "check"): ("full", "header", "exists", "none"),
@@ -214,7 +215,7 @@ def validate_config(cfg: Config, where: str = "config", smallest_room: bool = Tr
         if val not in allowed:
             name = key if sec is None else f"{sec}.{key}"
             raise ConfigError(f"{where}: {name} = {val!r} is not one of {', '.join(allowed)}")
-    if cfg.scene.path.kind not in ("const", "choose") or not all(isinstance(o, str) and o in ("arc", "line") for o in cfg.scene.path.options):
+    if cfg.scene.path.kind not in ("const", "choose") or not all(isinstance(o, str) and o in PATHS for o in cfg.scene.path.options):
         raise ConfigError(f"{where}: scene.path must be \"arc\", \"line\" or [\"choose\", [\"arc\", \"line\"]], "
                           f"got {cfg.scene.path.to_json()!r}")
     for sc in cfg.scene.scenario.options:

@@ -191,7 +191,6 @@ def _place_sources(cfg, rng, spatial, moving, room: Room, centre, yaw):
 
 # A moving source's RIRs are computed at least every 100 ms and every 4 degrees.
 KNOT_HOP_S, KNOT_STEP_DEG = 0.1, 4.0
-PATHS = ("arc", "line")
 
 
 def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, d: float, h: float, fc: np.ndarray):
@@ -213,13 +212,13 @@ def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, d: f
     az_rate = speed * d / r_h  # °/s of azimuth: the arc's, and the line's at its closest
     hop = min(KNOT_HOP_S, KNOT_STEP_DEG / az_rate) if speed > 0 else dur
     t = np.arange(0.0, dur + hop - 1e-9, hop)
-    a0 = math.radians(az0 + yaw)
     if kind == "arc":
         a = np.radians(az0 + yaw + direction * az_rate * t)
         x, y = centre[0] + r_h * np.cos(a), centre[1] + r_h * np.sin(a)
         track = az0 + direction * az_rate * fc
     else:
         t_close = float(rng.uniform(0.0, dur))
+        a0 = math.radians(az0 + yaw)
         v = math.radians(speed) * d
         s = direction * v * (t - t_close)  # signed distance along the line from the closest point
         x = centre[0] + r_h * math.cos(a0) - s * math.sin(a0)
@@ -305,14 +304,10 @@ def resolve_bank(cfg: Config, out_dir: str) -> str | None:
 
     from .check import bank_problems
 
-    problems = bank_problems(replace(cfg, room=replace(cfg.room, bank=path)))
+    problems = bank_problems(replace(cfg, room=replace(cfg.room, bank=path)))  # format, sample rate, rooms
     if problems:
         raise problems[0]
     bank = open_bank_cached(path, cfg.scene.format)
-    bank.require_fs(cfg.audio.fs)
-    if bank.format != cfg.scene.format:
-        raise GeometryError(f"{path}: the bank holds {bank.format} RIRs but scene.format is {cfg.scene.format}; "
-                            f"set scene.format = \"{bank.format}\"")
     for split, sp in cfg.splits.items():
         if sp.count:
             split_rooms(cfg, split, bank)  # raises on a room the bank does not have

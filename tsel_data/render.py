@@ -90,10 +90,8 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
             rt60 = rs.rt60_measured if rt60 is None else rt60
             images[k] = render_moving(dry[k], rs.rirs, knots[:, 0], fs)[:, :n]
         elif s.bank is not None:
-            from .plan import open_bank_cached
-
             b = s.bank
-            rirs = open_bank_cached(recipe.extra["bank"], recipe.array.format).views(b["room"], b["trajectory"], b["indices"])
+            rirs = _bank(recipe).views(b["room"], b["trajectory"], b["indices"])
             if len(rirs) == 1:
                 images[k] = convolve(dry[k:k + 1], rirs[0][None], n)[0]
             else:
@@ -102,7 +100,7 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
 
 
 def render_scene(recipe: SceneRecipe) -> RenderedScene:
-    fs, n, hop, nf = recipe.fs, recipe.n_samples, recipe.label_hop, recipe.n_frames
+    fs, hop, nf = recipe.fs, recipe.label_hop, recipe.n_frames
     fmt = recipe.array.format
     dry = np.stack([load_clip_cached(s.audio, fs, recipe.duration, s.offset) for s in recipe.sources])
     active = np.stack([frame_activity(x, fs, hop, nf, recipe.activity_threshold_db) for x in dry])
@@ -132,13 +130,14 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
     dist = np.stack([l[2] for l in labels])
     mics = recipe.array.mics().astype(np.float32)
 
+    room, centre, yaw = _room_and_pose(recipe, rt60_measured)
     record = {
         "scene_id": recipe.scene_id, "split": recipe.split, "index": recipe.index, "seed": recipe.seed,
         "scenario": recipe.scenario, "query": recipe.query,
         "motion": "moving" if any(s.moving for s in recipe.sources) else "static",
         "rir_method": recipe.rir_method,
-        "room": _room_record(recipe, rt60_measured),
-        "array": {"format": fmt, **_array_pose(recipe),
+        "room": room,
+        "array": {"format": fmt, "centre": centre, "yaw": yaw,
                   "side": recipe.array.side, "mic_positions": np.round(mics.astype(np.float64), 6).tolist()},
         "sources": [
             {"role": s.role, "clip_id": s.clip_id, "audio": s.audio, "captions": list(s.captions),
@@ -158,28 +157,26 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
     return RenderedScene(recipe.scene_id, recipe.query, mix, az, el, dist, active, mics, record)
 
 
-def _room_record(recipe: SceneRecipe, rt60_measured) -> dict:
-    if recipe.room is not None:
-        return {"dims": list(recipe.room.dims), "rt60": recipe.room.rt60, "rt60_measured": rt60_measured}
+def _bank(recipe: SceneRecipe):
     from .plan import open_bank_cached
 
-    info = open_bank_cached(recipe.extra["bank"], recipe.array.format).room_info(recipe.extra["bank_room"])
-    return {"name": recipe.extra["bank_room"], "bank": recipe.extra["bank"],
-            "dims": info.get("dims", info.get("dimensions")),
-            "rt60": info.get("rt60"), "rt60_measured": None}
+    return open_bank_cached(recipe.extra["bank"], recipe.array.format)
 
 
-def _array_pose(recipe: SceneRecipe) -> dict:
-    """The array's place in the room: the recipe's, or for bank scenes what the bank says
-    (simulated banks know it; measured ones do not: null)."""
+def _room_and_pose(recipe: SceneRecipe, rt60_measured) -> tuple[dict, list | None, float | None]:
+    """The room record, and the array's centre and yaw in the room: the recipe's, or for
+    bank scenes what the bank says (simulated banks know the pose; measured ones do not:
+    null)."""
     if recipe.room is not None:
-        return {"centre": list(recipe.array.centre), "yaw": recipe.array.yaw}
-    from .plan import open_bank_cached
-
-    arr = open_bank_cached(recipe.extra["bank"], recipe.array.format).room_info(recipe.extra["bank_room"]).get("array") or {}
+        room = {"dims": list(recipe.room.dims), "rt60": recipe.room.rt60, "rt60_measured": rt60_measured}
+        return room, list(recipe.array.centre), recipe.array.yaw
+    info = _bank(recipe).room_info(recipe.extra["bank_room"])
+    room = {"name": recipe.extra["bank_room"], "bank": recipe.extra["bank"],
+            "dims": info.get("dims", info.get("dimensions")), "rt60": info.get("rt60"), "rt60_measured": None}
+    arr = info.get("array") or {}
     if arr.get("centre") is None or arr.get("yaw") is None:
-        return {"centre": None, "yaw": None}
-    return {"centre": [float(v) for v in arr["centre"]], "yaw": float(arr["yaw"])}
+        return room, None, None
+    return room, [float(v) for v in arr["centre"]], float(arr["yaw"])
 
 
 def _round(a: np.ndarray, nd: int = 3) -> list:

@@ -90,25 +90,6 @@ def render_static(signal, rir) -> np.ndarray:
     return out.reshape(C, -1)[:, :n_out]
 
 
-def knot_weights(times, fs: float, n: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """w_k(n): the crossfade weight of knot ``k`` at sample ``n`` (broadcasting arrays).
-
-    Linear between neighbouring knots, 1 before the first and after the last knot; the
-    weights of all knots sum to 1 at every sample.
-    """
-    p = np.asarray(times, dtype=np.float64) * fs
-    K = len(p)
-    k = np.asarray(k)
-    n = np.asarray(n, dtype=np.float64)
-    pk = p[k]
-    left = p[np.maximum(k - 1, 0)]
-    right = p[np.minimum(k + 1, K - 1)]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rise = np.where(k == 0, 1.0, (n - left) / (pk - left))
-        fall = np.where(k == K - 1, 1.0, (right - n) / (right - pk))
-    return np.clip(np.where(n <= pk, rise, fall), 0.0, 1.0)
-
-
 def render_moving(signal, rirs, times, fs: float) -> np.ndarray:
     """Render a moving source: float32 [C, T + L - 1] (rows may be strided, as in
     :func:`render_static`).
@@ -231,7 +212,6 @@ def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h) -> np.ndarray:
     x: float32 [T]. p: float64 [K] knot positions (samples). e: int [K + 1] interval
     starts (e_0 = 0, e_K = T). h: K RIRs [C, L] (an array [K, C, L] or a sequence).
     """
-    K = len(p)
     C, L = h[0].shape
     T = len(x)
     B, P, N = _plan(e, C, L, T)

@@ -23,18 +23,6 @@ from . import BankError, MemoryBank, Trajectory, check_format
 DEMO = dict(n_rooms=1, distances=(1.0, 1.5), heights=(-0.3, 0.3), step_deg=10.0, rt60=(0.3, 0.45))
 
 
-def default_method(fmt: str) -> str:
-    """``hybrid`` when the project's simulator is present, else pyroomacoustics (omni only)."""
-    try:
-        from ..acoustics import shoebox  # noqa: F401
-
-        return "hybrid"
-    except ImportError:
-        if fmt == "foa":
-            raise BankError("building an FOA bank needs the project's shoebox simulator (rir method 'hybrid' or 'ism'), which is not installed") from None
-        return "pyroomacoustics"
-
-
 def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int = 24000,
                   distances=(1.0, 1.5), heights=(-0.3, 0.0, 0.3), step_deg: float = 5.0,
                   rt60=(0.3, 0.8), dims_min=(5.0, 4.5, 2.7), dims_max=(9.0, 7.0, 3.5),
@@ -44,7 +32,7 @@ def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int
     from ..acoustics import simulate_rirs
 
     fmt = check_format(format)
-    method = method or default_method(fmt)
+    method = method or "hybrid"  # the toolkit's own simulator (acoustics/shoebox.py)
     if fmt == "foa" and method == "pyroomacoustics":
         raise BankError("the pyroomacoustics method renders omni capsules only; build FOA banks with method 'hybrid' or 'ism'")
     distances = tuple(float(d) for d in distances)

@@ -21,7 +21,6 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ..geometry import CHANNEL_NAMES
 from . import Bank, BankError, Trajectory, check_format
 from ._h5 import H5Pool, read_rows
 

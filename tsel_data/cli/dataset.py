@@ -86,7 +86,7 @@ def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out
     cfg = _load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
     counts = plan_dataset(cfg, out_dir, workers=_workers(workers))
     n_shards = len(shard_tasks(*load_plan(out_dir)))
-    click.echo(f"planned " + ", ".join(f"{k} {v}" for k, v in counts.items()) + f" scenes in {n_shards} shards "
+    click.echo("planned " + ", ".join(f"{k} {v}" for k, v in counts.items()) + f" scenes in {n_shards} shards "
                f"(0-{n_shards - 1}) in {out_dir}/plan")
 
 
@@ -124,4 +124,4 @@ def finalize_cmd(out_dir):
     from ..generate import finalize
 
     doc = finalize(out_dir)
-    click.echo(f"dataset.json written: " + ", ".join(f"{k} {v['scenes']}" for k, v in doc["splits"].items()))
+    click.echo("dataset.json written: " + ", ".join(f"{k} {v['scenes']}" for k, v in doc["splits"].items()))
