@@ -171,7 +171,7 @@ def main():
         path = args.bank or tau_shaped_bank(os.path.join(tmp, "bank.h5"))
         bank = open_bank(path)
         bank.require_fs(FS)
-        print(f"bank: {bank.source} ({bank.format}, {bank.fs} Hz, {bank.n_rirs()} RIRs, "
+        print(f"bank: {bank.source} ({bank.format}, {bank.fs} Hz, {bank.summary()['rirs']} RIRs, "
               f"L = {bank.read(bank.rooms[0], bank.trajectories(bank.rooms[0])[0].id, [0]).shape[-1]})")
         for label, moving in (("static", False), ("moving", True)):
             rate, ms = scenes_per_second(bank, args.scenes, moving, args.repeats)

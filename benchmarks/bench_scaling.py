@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_scaling.py [--scenes 32] [--workers 2]
 
-Runs the real job (`tsel_data.generate.generate`: plan, render, shards on disk,
+Runs the real job (`tsel_data.pipeline.generate`: plan, render, shards on disk,
 dataset.json) on the built-in demo corpus, 10 s 24 kHz 2-source scenes, for each setting
 below, once with 1 worker (the baseline, measured in the same run) and once with N.
 Prints one row per setting; docs/scaling.md quotes its output.
@@ -20,7 +20,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from tsel_data.config import load_config  # noqa: E402
 from tsel_data.demo import synth_corpus  # noqa: E402
-from tsel_data.generate import generate, plan_dataset  # noqa: E402
+from tsel_data.pipeline import generate, plan_dataset  # noqa: E402
 
 SETTINGS = {
     "mic4, paper rooms (hybrid)": ("paper-sim-2dir", []),
@@ -55,9 +55,12 @@ def main():
     synth_corpus(corpus)
     bank = None
     try:
-        from tsel_data.plan import resolve_bank
+        from tsel_data.banks.scenes import resolve_bank
+        from tsel_data.plan import bank_request
+        from tsel_data.store.layout import Layout
 
-        bank = resolve_bank(load_config(preset="demo-moving", corpus_dir=corpus), root)  # builds the demo bank once
+        # builds the demo bank once
+        bank = resolve_bank(bank_request(load_config(preset="demo-moving", corpus_dir=corpus)), Layout(root).demo_bank)
         print(f"{os.cpu_count()} cores; {args.scenes} scenes of 10 s per run; 1 vs {args.workers} workers\n")
         print(f"{'setting':34} {'1 worker s/scene':>17} {'scenes/h/core':>14} {'MB/1000 scenes':>15} "
               f"{f'{args.workers} workers':>10} {'speed-up':>9}")

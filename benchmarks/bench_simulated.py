@@ -45,7 +45,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from tsel_data.acoustics import simulate_rirs  # noqa: E402
 from tsel_data.acoustics.metrics import t30  # noqa: E402
 from tsel_data.geometry import CHANNEL_NAMES, array_to_room  # noqa: E402
-from tsel_data.recipe import ArrayPose, Room, SceneRecipe, Source  # noqa: E402
+from tsel_data.geometry import ArrayPose, Room
+from tsel_data.recipe import SceneRecipe, Source  # noqa: E402
 
 FS = 24000
 DURATION = 10.0

@@ -8,13 +8,14 @@ make deliberately wrong data.
 """
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
 
-from tsel_data.geometry import CHANNEL_NAMES, array_to_room, foa_gains, mic_positions, sph_to_cart, wrap_azimuth
-from tsel_data.store.writer import RenderedScene, write_shard
+from tsel_data.geometry import array_to_room, foa_gains, mic_positions, sph_to_cart, wrap_azimuth
+from tsel_data.store.dataset import dataset_doc, shard_attrs
+from tsel_data.store.records import SceneRecord
+from tsel_data.store.writer import RenderedScene, write_json, write_shard
 
 C_SOUND = 343.0
 
@@ -94,7 +95,8 @@ def make_scene(split, index, *, fmt="mic4", rng, n_frames=20, fs=16000, hop_s=0.
         "levels": {"target_level_dbfs": -25.0, "peak": float(np.max(np.abs(audio))), "normalisation_db": 0.0},
     }
     return RenderedScene(scene_id=scene_id, query=record["query"], audio=audio, azimuth=az_arr, elevation=el_arr,
-                         distance=d_arr, active=act, mic_positions=mics.astype(np.float32), record=record)
+                         distance=d_arr, active=act, mic_positions=mics.astype(np.float32),
+                         record=SceneRecord.from_json(record))
 
 
 def make_dataset(root, *, fmt="mic4", splits=None, seed=0, n_frames=20, fs=16000, moving=(), additive=(),
@@ -109,9 +111,8 @@ def make_dataset(root, *, fmt="mic4", splits=None, seed=0, n_frames=20, fs=16000
     target_az = target_az or {}
     rng = np.random.default_rng(seed)
     out = {}
-    doc = {"tool": "tsel-data", "version": "0.1.0", "format_version": 1,
-           "conventions": {"frame": "x front, y left, z up"}, "config": {}, "seed": seed, "fs": fs,
-           "label_hop": 0.1, "format": fmt, "channel_names": list(CHANNEL_NAMES[fmt]), "splits": {}}
+    attrs = shard_attrs(fs, 0.1, fmt)
+    entries = {}
     for split, count in splits.items():
         scenes = []
         for i in range(count):
@@ -119,12 +120,17 @@ def make_dataset(root, *, fmt="mic4", splits=None, seed=0, n_frames=20, fs=16000
             scenes.append(make_scene(split, i, fmt=fmt, rng=rng, n_frames=n_frames, fs=fs, moving=sid in moving,
                                      additive=sid in additive, rotate=rotate.get(sid, 0.0),
                                      az=target_az.get(sid)))
-        attrs = {"fs": fs, "label_hop": 0.1, "format": fmt, "channel_names": list(CHANNEL_NAMES[fmt]),
-                 "format_version": 1}
-        entries = [write_shard(str(root), split, k, scenes[j: j + shard_size], attrs)
-                   for k, j in enumerate(range(0, count, shard_size))]
-        doc["splits"][split] = {"scenes": count, "shards": entries}
+        entries[split] = [write_shard(str(root), split, k, scenes[j: j + shard_size], attrs)
+                          for k, j in enumerate(range(0, count, shard_size))]
         out[split] = scenes
-    with open(os.path.join(root, "dataset.json"), "w", encoding="utf-8") as f:
-        json.dump(doc, f, indent=1)
+    config = {"audio": {"fs": fs, "duration": n_frames * 0.1, "label_hop": 0.1},
+              "splits": {s: {"count": n} for s, n in splits.items()}}
+    write_json(os.path.join(root, "dataset.json"), dataset_doc(config, seed, attrs, entries))
     return out
+
+
+def plan_recipes(cfg, split, view):
+    """Every recipe of a split, planned in memory (what `tsel plan` writes, unserialised)."""
+    from tsel_data.plan import plan_scene
+
+    return [plan_scene(cfg, split, i, view) for i in range(cfg.splits[split].count)]

@@ -12,7 +12,7 @@ from tsel_data.acoustics.metrics import coherence, edc, t30
 from tsel_data.acoustics.shoebox import TRANSITION, shoebox_rirs
 from tsel_data.errors import GeometryError
 from tsel_data.geometry import array_to_room, foa_gains
-from tsel_data.recipe import ArrayPose, Room
+from tsel_data.geometry import ArrayPose, Room
 
 FS = 24000
 

@@ -311,20 +311,21 @@ def test_bank_problems(name, tmp_path, demo_corpus):
 
 def test_bank_problems_library(tmp_path):
     """The same checks through the library, several problems at once."""
-    from tsel_data.check import bank_problems
+    from tsel_data.banks.scenes import bank_problems
     from tsel_data.config import load_config
+    from tsel_data.plan import bank_request
 
     p = _bank(tmp_path / "b.h5", fs=16000, nan_room="roomA")
     cfg = load_config(preset="demo", overrides=[f'room.bank="{p}"', 'splits.train.rooms=["roomA", "roomQ"]'],
                       splits={"train": 2, "val": 0, "test": 0})
-    msgs = [str(e) for e in bank_problems(cfg)]
+    msgs = [str(e) for e in bank_problems(bank_request(cfg))]
     assert any("16000 Hz" in m for m in msgs)
     assert any("no room 'roomQ'" in m for m in msgs)
     assert any("roomA" in m and "positions missing" in m for m in msgs)
     good = _bank(tmp_path / "g.h5")
     cfg = load_config(preset="demo", overrides=[f'room.bank="{good}"', 'splits.train.rooms=["roomA"]',
                                                 'splits.val.rooms=["roomA"]'], splits={"train": 2, "val": 2, "test": 0})
-    msgs = [str(e) for e in bank_problems(cfg)]
+    msgs = [str(e) for e in bank_problems(bank_request(cfg))]
     assert len(msgs) == 1 and "also used by split train" in msgs[0]
 
 
@@ -369,7 +370,7 @@ def test_bad_clip_policy_skip_and_fail(tmp_path):
     doc = json.load(open(tmp_path / "skip" / "plan" / "config.json"))
     assert doc["bad_clips"] == 7
     # fail: stops before rendering with the first bad clip, the count of the others, and the fix
-    line = assert_one_line_error(fail, "train.csv:2", "dogA", "(and 6 more)", 'on_bad_clip = "skip"')
+    line = assert_one_line_error(fail, "train.csv:2", "dogA", "(and 6 more", 'on_bad_clip = "skip"')
     assert "audio file not found" in line
     _no_shards(tmp_path / "fail")
     assert not (tmp_path / "fail" / "plan" / "config.json").exists()
@@ -394,7 +395,7 @@ def test_nan_clip_never_reaches_a_scene(tmp_path):
 
 
 def test_a_good_bank_passes_and_its_scenes_are_planned(tmp_path, demo_corpus):
-    from tsel_data.check import check_config
+    from tsel_data.preflight import check_config
     from tsel_data.config import load_config
 
     p = _bank(tmp_path / "good.h5")

@@ -310,7 +310,7 @@ def test_build_demo_bank_cli(tmp_path):
     res = CliRunner().invoke(bank, ["build", "--out", str(out), "--demo", "--format", "foa", "--seed", "3"])
     assert res.exit_code == 0, res.output
     b = open_bank(out)
-    assert b.format == "foa" and len(b.rooms) == 1
+    assert b.format == "foa" and len(b.rooms) == 4  # the demo-moving preset's bank
     trajs = b.trajectories(b.rooms[0])
     assert len(trajs) == 4 and all(t.kind == "circular" and t.closed and len(t) == 36 for t in trajs)
     # the FOA direct path points where the bank says: first peak of W, and Y/W, X/W there

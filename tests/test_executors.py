@@ -3,7 +3,7 @@ import os
 
 import pytest
 
-from tsel_data.generate import finalize, generate, plan_dataset, render_shards
+from tsel_data.pipeline import finalize, generate, plan_dataset, render_shards
 from tsel_data.store.writer import sha256_file
 
 

@@ -5,10 +5,12 @@ import os
 import numpy as np
 import pytest
 
+from datasetfixture import plan_recipes
+from tsel_data.banks.scenes import resolve_bank
 from tsel_data.catalog import build_catalog
-from tsel_data.generate import generate, plan_dataset
 from tsel_data.geometry import azimuth_difference, sph_to_cart
-from tsel_data.plan import CatalogView, plan_split, resolve_bank
+from tsel_data.pipeline import generate, plan_dataset
+from tsel_data.plan import CatalogView, bank_request
 from tsel_data.recipe import SceneRecipe
 from tsel_data.render import render_scene, source_labels
 
@@ -17,8 +19,8 @@ def test_simulated_arcs_follow_their_speed(small_config, tmp_path):
     cfg = small_config('scene.motion="moving"', 'scene.scenario="two-directional"', "scene.speed=30.0",
                        "scene.separated_frames=0.5", 'room.length=["uniform", 12.0, 15.0]',
                        'room.width=["uniform", 12.0, 15.0]', splits={"train": 4})
-    cat = build_catalog(cfg, str(tmp_path))
-    for r in plan_split(cfg, "train", CatalogView(cat.clips["train"])):
+    cat = build_catalog(cfg, cfg.corpus.dir)
+    for r in plan_recipes(cfg, "train", CatalogView(cat.clips["train"])):
         for k, s in enumerate(r.sources):
             assert s.moving and s.path and s.position is None
             knots = np.asarray(s.path)
@@ -41,8 +43,8 @@ def test_simulated_lines_pass_the_array_at_their_speed(small_config, tmp_path):
     cfg = small_config('scene.motion="moving"', 'scene.path="line"', 'scene.scenario="two-directional"',
                        "scene.speed=20.0", "scene.separated_frames=0.5", 'room.length=["uniform", 12.0, 15.0]',
                        'room.width=["uniform", 12.0, 15.0]', splits={"train": 4})
-    cat = build_catalog(cfg, str(tmp_path))
-    for r in plan_split(cfg, "train", CatalogView(cat.clips["train"])):
+    cat = build_catalog(cfg, cfg.corpus.dir)
+    for r in plan_recipes(cfg, "train", CatalogView(cat.clips["train"])):
         for k, s in enumerate(r.sources):
             knots = np.asarray(s.path)
             assert knots[0, 0] <= 0 and knots[-1, 0] >= r.duration and np.all(np.diff(knots[:, 0]) <= 0.1 + 1e-9)
@@ -78,8 +80,8 @@ def test_moving_source_audio_comes_from_its_labels(kind, small_config, tmp_path)
     cfg = small_config('scene.motion="moving"', f'scene.path="{kind}"', 'scene.scenario="two-directional"',
                        "scene.speed=40.0", "scene.separated_frames=0.5", "room.rt60=0.1", "array.side=0.4",
                        'room.length=["uniform", 14.0, 15.0]', 'room.width=["uniform", 14.0, 15.0]', splits={"train": 1})
-    cat = build_catalog(cfg, str(tmp_path))
-    r = plan_split(cfg, "train", CatalogView(cat.clips["train"]))[0]
+    cat = build_catalog(cfg, cfg.corpus.dir)
+    r = plan_recipes(cfg, "train", CatalogView(cat.clips["train"]))[0]
     noise = np.random.default_rng(0).standard_normal((len(r.sources), r.n_samples)).astype(np.float32)
     y = spatial_images(r, noise)[0][0]
     az, el, dist = source_labels(r, 0)
@@ -104,8 +106,8 @@ def test_moving_source_audio_comes_from_its_labels(kind, small_config, tmp_path)
 def test_moving_scene_renders_with_full_length_and_finite_audio(small_config, tmp_path):
     cfg = small_config('scene.motion="mixed"', "scene.moving_fraction=1.0", 'scene.scenario="two-directional"',
                        "scene.speed=10.0", splits={"train": 1})
-    cat = build_catalog(cfg, str(tmp_path))
-    r = plan_split(cfg, "train", CatalogView(cat.clips["train"]))[0]
+    cat = build_catalog(cfg, cfg.corpus.dir)
+    r = plan_recipes(cfg, "train", CatalogView(cat.clips["train"]))[0]
     scene = render_scene(r)
     assert scene.audio.shape == (4, r.n_samples) and np.all(np.isfinite(scene.audio))
     assert scene.record["motion"] == "moving"
@@ -129,9 +131,9 @@ def test_bank_scenes_stay_in_their_split_rooms(bank_dataset):
     cfg, out = bank_dataset
     for split, rooms in (("train", {"sim01", "sim02"}), ("val", {"sim03"}), ("test", {"sim04"})):
         recipes = [SceneRecipe.from_json(x) for x in open(os.path.join(out, "plan", f"{split}.jsonl"))]
-        assert {r.extra["bank_room"] for r in recipes} <= rooms
+        assert {r.bank.room for r in recipes} <= rooms
         for r in recipes:
-            assert all(s.bank["room"] in rooms for s in r.sources if s.bank)
+            assert all(s.bank.room in rooms for s in r.sources if s.bank)
 
 
 def test_bank_labels_follow_the_bank_positions(bank_dataset):
@@ -171,11 +173,11 @@ def test_tau_db_with_room_numbers(tmp_path, demo_corpus):
                       splits={"train": 6, "val": 2, "test": 2})
     out = str(tmp_path / "out")
     plan_dataset(cfg, out)
-    rooms = {s: {SceneRecipe.from_json(x).extra["bank_room"] for x in open(os.path.join(out, "plan", f"{s}.jsonl"))}
+    rooms = {s: {SceneRecipe.from_json(x).bank.room for x in open(os.path.join(out, "plan", f"{s}.jsonl"))}
              for s in ("train", "val", "test")}
     assert rooms["train"] <= {"bomb_shelter", "gym"} and rooms["val"] == {"pb132"} and rooms["test"] == {"pc226"}
     # a measured room: size known, RT60 and the array's place in the room not
-    from tsel_data.generate import finalize, render_shards
+    from tsel_data.pipeline import finalize, render_shards
     from tsel_data.inspect import find_scene, summary
 
     render_shards(out, progress=False)
@@ -187,13 +189,13 @@ def test_tau_db_with_room_numbers(tmp_path, demo_corpus):
     bad = load_config(preset="paper-measured", corpus_dir=demo_corpus, bank=str(tmp_path / "TAU"),
                       splits={"train": 1, "val": 1, "test": 1})
     with pytest.raises(TselError, match="no room 3"):
-        resolve_bank(bad, str(tmp_path / "x"))
+        resolve_bank(bank_request(bad), str(tmp_path / "x"))
 
 
 def test_moving_source_knots_share_one_late_tail():
     """Independent tails per knot would be crossfaded into a 3 dB dip between knots."""
     from tsel_data.acoustics import simulate_rirs
-    from tsel_data.recipe import ArrayPose, Room
+    from tsel_data.geometry import ArrayPose, Room
 
     room, array = Room((8.0, 7.0, 3.5), 0.6), ArrayPose("mic4", (4.0, 3.5, 1.2), 0.0, 0.1)
     knots = np.array([[6.0, 3.5, 1.5], [5.9, 4.1, 1.5], [5.6, 4.7, 1.5]])
@@ -206,10 +208,9 @@ def test_moving_source_knots_share_one_late_tail():
 
 def test_a_split_without_rooms_never_draws_another_splits_rooms(tmp_path, demo_corpus):
     from bankfixtures import make_tau_db
-    from tsel_data.check import bank_problems
+    from tsel_data.banks.scenes import bank_problems, open_bank_cached, split_rooms
     from tsel_data.config import load_config
     from tsel_data.errors import ConfigError
-    from tsel_data.plan import open_bank_cached, split_rooms
 
     make_tau_db(tmp_path / "TAU", rooms=(("bomb_shelter", 1), ("gym", 2), ("pb132", 3), ("se203", 8), ("tb103", 9)), L=16)
     bank = open_bank_cached(str(tmp_path / "TAU"))
@@ -220,15 +221,15 @@ def test_a_split_without_rooms_never_draws_another_splits_rooms(tmp_path, demo_c
                            overrides=sets, splits={"train": 2, "val": 1, "test": 1})
 
     c = cfg(train=[1, 2], test=[])  # val keeps the preset's room 8; test names none
-    assert split_rooms(c, "test", bank) == ["pb132", "tb103"]      # not val's se203, not train's
-    assert split_rooms(c, "train", bank) == ["bomb_shelter", "gym"]
-    assert bank_problems(c) == []
+    assert split_rooms(bank, c.rooms_by_split(), "test") == ["pb132", "tb103"]      # not val's se203, not train's
+    assert split_rooms(bank, c.rooms_by_split(), "train") == ["bomb_shelter", "gym"]
+    assert bank_problems(bank_request(c)) == []
     c = cfg(train=[], val=[], test=[])  # nobody splits by room: every split may use every room
-    assert split_rooms(c, "test", bank) == bank.rooms
+    assert split_rooms(bank, c.rooms_by_split(), "test") == bank.rooms
     c = cfg(train=[1, 2, 3, 9], test=[])  # with val's 8, nothing is left for test
     with pytest.raises(ConfigError, match="splits.test.rooms is empty and every room"):
-        split_rooms(c, "test", bank)
-    assert any("splits.test.rooms is empty" in str(e) for e in bank_problems(c))
+        split_rooms(bank, c.rooms_by_split(), "test")
+    assert any("splits.test.rooms is empty" in str(e) for e in bank_problems(bank_request(c)))
 
 
 def test_banks_holding_two_formats_are_used_in_the_configs_format(tmp_path, demo_corpus):
@@ -258,8 +259,8 @@ def test_banks_holding_two_formats_are_used_in_the_configs_format(tmp_path, demo
         scene = render_scene(r)
         assert scene.record["array"]["format"] == fmt and np.all(np.isfinite(scene.audio))
         if bank.name == "SS":  # the mic files hold 2.0, the foa files 1.0: the right files were read
-            from tsel_data.plan import open_bank_cached
+            from tsel_data.banks.scenes import open_bank_cached
 
-            b = open_bank_cached(r.extra["bank"], fmt)
+            b = open_bank_cached(r.bank.path, fmt)
             src = r.sources[0].bank
-            assert np.all(b.read(src["room"], src["trajectory"], src["indices"][:1]) == (1.0 if fmt == "foa" else 2.0))
+            assert np.all(b.read(src.room, src.trajectory, src.indices[:1]) == (1.0 if fmt == "foa" else 2.0))

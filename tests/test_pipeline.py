@@ -8,7 +8,7 @@ import h5py
 import numpy as np
 import pytest
 
-from tsel_data.generate import finalize, generate, render_shards
+from tsel_data.pipeline import finalize, generate, render_shards
 from tsel_data.store.writer import sha256_file
 
 

@@ -7,7 +7,8 @@ import pytest
 from tsel_data.captions import max_similarity, tokens
 from tsel_data.catalog import build_catalog
 from tsel_data.geometry import cart_to_sph, room_to_array, azimuth_difference
-from tsel_data.plan import CatalogView, plan_scene, plan_split, plan_split_json
+from datasetfixture import plan_recipes
+from tsel_data.plan import CatalogView, plan_scene, plan_split_json
 from tsel_data.recipe import SceneRecipe
 
 AUDIOCAPS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "audiocaps")
@@ -16,21 +17,21 @@ AUDIOCAPS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "audio
 @pytest.fixture
 def planned(small_config, tmp_path):
     cfg = small_config(splits={"train": 40, "val": 4, "test": 4})
-    cat = build_catalog(cfg, str(tmp_path))
-    return cfg, cat, plan_split(cfg, "train", CatalogView(cat.clips["train"]))
+    cat = build_catalog(cfg, cfg.corpus.dir)
+    return cfg, cat, plan_recipes(cfg, "train", CatalogView(cat.clips["train"]))
 
 
 def test_same_seed_same_recipes_and_scenes_are_independent(planned):
     cfg, cat, recipes = planned
     view = CatalogView(cat.clips["train"])
-    assert [r.to_json() for r in plan_split(cfg, "train", view)] == [r.to_json() for r in recipes]
+    assert [r.to_json() for r in plan_recipes(cfg, "train", view)] == [r.to_json() for r in recipes]
     # scene 17 planned alone equals scene 17 of the full plan
     assert plan_scene(cfg, "train", 17, view) == recipes[17]
     # two workers give the same lines as one
     assert plan_split_json(cfg, "train", view, workers=2, chunk=7) == [r.to_json() for r in recipes]
     from dataclasses import replace
 
-    other = plan_split(replace(cfg, seed=cfg.seed + 1), "train", view)
+    other = plan_recipes(replace(cfg, seed=cfg.seed + 1), "train", view)
     assert [r.to_json() for r in other] != [r.to_json() for r in recipes]
 
 
@@ -72,8 +73,8 @@ def test_recipes_respect_the_config(planned):
 
 def test_more_interferers(small_config, tmp_path):
     cfg = small_config("scene.interferers=3", 'scene.scenario="two-directional"', splits={"train": 5})
-    cat = build_catalog(cfg, str(tmp_path))
-    for r in plan_split(cfg, "train", CatalogView(cat.clips["train"])):
+    cat = build_catalog(cfg, cfg.corpus.dir)
+    for r in plan_recipes(cfg, "train", CatalogView(cat.clips["train"])):
         assert len(r.sources) == 4 and len({s.clip_id for s in r.sources}) == 4
 
 
@@ -81,7 +82,7 @@ def test_more_interferers(small_config, tmp_path):
 def test_real_audiocaps_manifests_plan(tmp_path):
     """The real manifests parse and plan at scale (audio files are not needed to plan)."""
     from tsel_data.config import load_config
-    from tsel_data.generate import plan_dataset
+    from tsel_data.pipeline import plan_dataset
 
     for name in ("train", "val", "test"):
         os.symlink(os.path.abspath(os.path.join(AUDIOCAPS, f"{name}.csv")), tmp_path / f"{name}.csv")

@@ -23,11 +23,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tsel_data.check import check_config, check_dataset, check_raw_config
+from tsel_data.config import check_raw_config
+from tsel_data.preflight import check_config
+from tsel_data.store.verify import check_dataset
 from tsel_data.config import SECTIONS, TOP_KEYS, SplitConfig, load_config, parse_config
 from tsel_data.distributions import KINDS
 from tsel_data.errors import ConfigError, DatasetError, GeometryError
-from tsel_data.generate import finalize, generate, plan_dataset, render_shards
+from tsel_data.pipeline import finalize, generate, plan_dataset, render_shards
 from tsel_data.store import writer
 from tsel_data.store.writer import sha256_file
 
@@ -382,7 +384,7 @@ def test_plan_is_the_same_on_any_number_of_workers(cfg):
     from tsel_data.plan import CatalogView, plan_split_json
 
     big = load_config(preset="demo", corpus_dir=cfg.corpus.dir, splits={"train": 300, "val": 0, "test": 0})
-    cat = CatalogView(build_catalog(big, "/nonexistent").clips["train"])
+    cat = CatalogView(build_catalog(big, big.corpus.dir).clips["train"])
     one = plan_split_json(big, "train", cat, workers=1, chunk=70)
     two = plan_split_json(big, "train", cat, workers=2, chunk=70)
     assert one == two and len(one) == 300
@@ -400,7 +402,7 @@ def _rss_bytes() -> int:
 @pytest.mark.slow
 @pytest.mark.skipif(not os.path.exists("/proc/self/statm"), reason="needs /proc")
 def test_soak_2000_scenes_memory_stays_flat(demo_corpus, tmp_path, monkeypatch):
-    import tsel_data.generate as gen
+    import tsel_data.pipeline as gen
 
     cfg = load_config(preset="demo", corpus_dir=demo_corpus, splits={"train": 2000, "val": 0, "test": 0},
                       overrides=["audio.duration=1.0", "audio.fs=8000", "output.shard_size=20",

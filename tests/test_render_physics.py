@@ -5,7 +5,8 @@ import pytest
 from tsel_data.acoustics import SOUND_SPEED
 from tsel_data.acoustics.pyroom import pyroom_rirs
 from tsel_data.geometry import mic_positions, sph_to_cart
-from tsel_data.recipe import ArrayPose, Room, SceneRecipe, Source
+from tsel_data.geometry import ArrayPose, Room
+from tsel_data.recipe import SceneRecipe, Source
 from tsel_data.render import convolve, source_labels
 
 FS = 24000

@@ -5,6 +5,9 @@ clip once to catch NaN and silence, ``header`` reads headers, ``exists`` only lo
 the file, ``none`` trusts the manifest). A bad clip is either skipped and listed in
 ``OUT/bad_clips.jsonl`` (``on_bad_clip = "skip"``) or stops the run before any
 rendering (``"fail"``). Never silently.
+
+:func:`scan_catalog` collects every problem and never raises (``tsel check``);
+:func:`build_catalog` is the scan, then the first problem raised (``tsel plan``).
 """
 from __future__ import annotations
 
@@ -17,29 +20,56 @@ from .audio import ClipCheck, check_clip
 from .clip import Clip
 from .config import Config
 from .errors import AudioError, ConfigError, ManifestError, TselError
+from .manifests import read_manifest
+from .store.writer import write_lines
 
 BUILTIN_DEMO = "builtin:demo"
+MIN_CLIPS = 2  # a scene holds a target and at least one interferer, from different clips
+
+
+@dataclass(frozen=True)
+class BadClip:
+    """A clip the bad-clip policy applies to: where it is listed and what is wrong."""
+
+    split: str
+    clip_id: str
+    origin: str
+    problem: str
+
+    def to_json(self) -> dict:
+        return {"split": self.split, "clip_id": self.clip_id, "origin": self.origin, "problem": self.problem}
+
+    def error(self) -> AudioError:
+        return AudioError(f"{self.origin}: clip {self.clip_id}: {self.problem}; fix or remove it, or set "
+                          f"on_bad_clip = \"skip\"")
 
 
 @dataclass
-class Catalog:
-    clips: dict[str, list[Clip]]  # split -> good clips, manifest order
-    bad: list[dict] = field(default_factory=list)  # {"split", "clip_id", "origin", "problem"}
+class CatalogScan:
+    """What reading and checking a corpus found.
 
-    def summary(self) -> str:
-        parts = [f"{s}: {len(c)} clips" for s, c in self.clips.items()]
-        return ", ".join(parts) + (f"; {len(self.bad)} bad clips skipped (bad_clips.jsonl)" if self.bad else "")
+    clips: split -> usable clips, manifest order (only splits with at least two).
+    bad: every bad clip. problems: every TselError that stops a run (unreadable
+    manifests, duplicate ids, bad clips under ``on_bad_clip = "fail"``, too few clips).
+    counts: split -> {"clips": read, "bad": bad} for the splits that were read.
+    """
+
+    clips: dict[str, list[Clip]] = field(default_factory=dict)
+    bad: list[BadClip] = field(default_factory=list)
+    problems: list[TselError] = field(default_factory=list)
+    counts: dict[str, dict] = field(default_factory=dict)
 
 
-def resolve_corpus_dir(cfg: Config, out_dir: str) -> str:
+def resolve_corpus_dir(cfg: Config, demo_dir: str) -> str:
+    """The corpus folder: ``corpus.dir``, or for ``builtin:demo`` the demo corpus,
+    synthesised into ``demo_dir`` once."""
     d = cfg.corpus.dir
     if d == BUILTIN_DEMO:
-        from .demo import synth_corpus
+        if not os.path.isfile(os.path.join(demo_dir, "test.csv")):
+            from .demo import synth_corpus  # its sounds need scipy.signal, ~1-2 s to import: only the demo pays
 
-        d = os.path.join(out_dir, "demo-corpus")
-        if not os.path.isfile(os.path.join(d, "test.csv")):
-            synth_corpus(d, seed=0)
-        return d
+            synth_corpus(demo_dir, seed=0)
+        return demo_dir
     if not d:
         raise ConfigError("no corpus given: pass --corpus-dir DIR (the folder with the manifests and audio) "
                           "or set corpus.dir in the config")
@@ -50,8 +80,7 @@ def resolve_corpus_dir(cfg: Config, out_dir: str) -> str:
 
 
 def read_split_clips(cfg: Config, split: str, corpus_dir: str) -> list[Clip]:
-    from .manifests import read_manifest
-
+    """Every clip of a split's manifest, unchecked."""
     sp = cfg.splits[split]
     if not sp.manifest:
         raise ConfigError(f"splits.{split}.manifest is not set; name the manifest file for this split")
@@ -66,34 +95,53 @@ def read_split_clips(cfg: Config, split: str, corpus_dir: str) -> list[Clip]:
     return read_manifest(path, format=cfg.corpus.format, audio_dir=audio_dir, **opts)
 
 
-def build_catalog(cfg: Config, out_dir: str, workers: int = 1) -> Catalog:
-    corpus_dir = resolve_corpus_dir(cfg, out_dir)
-    clips: dict[str, list[Clip]] = {}
-    bad: list[dict] = []
+def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1) -> CatalogScan:
+    """Read and check every split that makes scenes; collect, never raise.
+
+    corpus_dir: the resolved corpus folder (:func:`resolve_corpus_dir`). workers:
+    processes for the ``full`` clip check.
+    """
+    scan = CatalogScan()
     seen: dict = {}
-    for split, sp in cfg.splits.items():
-        if sp.count == 0:
+    for split in cfg.active_splits():
+        try:
+            clips = read_split_clips(cfg, split, corpus_dir)
+        except TselError as e:
+            scan.problems.append(e)
             continue
-        all_clips = read_split_clips(cfg, split, corpus_dir)
-        dup = duplicate_clips(all_clips, split, seen)
-        if dup:
-            raise ManifestError(dup[0] + (f" (and {len(dup) - 1} more)" if len(dup) > 1 else ""))
-        checks = check_clips(all_clips, cfg, workers)
+        except OSError as e:
+            scan.problems.append(ManifestError(f"splits.{split}.manifest: cannot read it ({e.strerror or e}: "
+                                               f"{e.filename}); check the file"))
+            continue
+        scan.problems += [ManifestError(m) for m in duplicate_clips(clips, split, seen)]
         good = []
-        for clip, chk in zip(all_clips, checks):
+        for clip, chk in zip(clips, check_clips(clips, cfg, workers)):
             if chk.problem is None:
                 good.append(clip)
-            else:
-                bad.append({"split": split, "clip_id": clip.id, "origin": clip.origin, "problem": chk.problem})
-        if bad and cfg.on_bad_clip == "fail":
-            b = bad[0]
-            more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
-            raise AudioError(f"{b['origin']}: clip {b['clip_id']}: {b['problem']}{more}; fix or remove it, "
-                             f"or set on_bad_clip = \"skip\"")
-        if len(good) < 2:
-            raise TselError(f"split {split}: only {len(good)} usable clips in {sp.manifest}; a scene needs two")
-        clips[split] = good
-    return Catalog(clips, bad)
+                continue
+            bad = BadClip(split, clip.id, clip.origin, chk.problem)
+            scan.bad.append(bad)
+            if cfg.on_bad_clip == "fail":
+                scan.problems.append(bad.error())
+        scan.counts[split] = {"clips": len(clips), "bad": len(clips) - len(good)}
+        if len(good) < MIN_CLIPS:
+            scan.problems.append(TselError(f"split {split}: only {len(good)} usable clips in "
+                                           f"{cfg.splits[split].manifest}; a scene needs {MIN_CLIPS}; add clips or "
+                                           f"fix the bad ones"))
+            continue
+        scan.clips[split] = good
+    return scan
+
+
+def build_catalog(cfg: Config, corpus_dir: str, workers: int = 1) -> CatalogScan:
+    """:func:`scan_catalog`, raising its first problem (and how many more there are)."""
+    scan = scan_catalog(cfg, corpus_dir, workers)
+    if scan.problems:
+        first, more = scan.problems[0], len(scan.problems) - 1
+        if more:
+            raise type(first)(f"{first} (and {more} more problem(s); run `tsel check` to list them)")
+        raise first
+    return scan
 
 
 def duplicate_clips(clips: list[Clip], split: str, seen: dict) -> list[str]:
@@ -113,6 +161,7 @@ def duplicate_clips(clips: list[Clip], split: str, seen: dict) -> list[str]:
 
 
 def check_clips(clips: list[Clip], cfg: Config, workers: int = 1) -> list[ClipCheck]:
+    """The ``corpus.check`` verdict on every clip, in order."""
     level = cfg.corpus.check
     if level == "none":
         return [ClipCheck(c.id, None) for c in clips]
@@ -128,8 +177,6 @@ def _check(a) -> ClipCheck:
     return check_clip(*a)
 
 
-def write_bad_clips(path: str, bad: list[dict]) -> None:
-    from .store.writer import atomic_write
-
-    atomic_write(path, "".join(json.dumps(b, ensure_ascii=False) + "\n" for b in bad).encode("utf-8"))
-
+def write_bad_clips(path: str, bad: list[BadClip]) -> None:
+    """``bad_clips.jsonl``: one JSON object per bad clip."""
+    write_lines(path, [json.dumps(b.to_json(), ensure_ascii=False) for b in bad])

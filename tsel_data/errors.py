@@ -3,6 +3,7 @@
 Anything a user can fix (a bad manifest row, a missing file, an impossible config)
 raises a :class:`TselError`. The CLI prints its message on one line and exits with 2;
 it never shows a traceback for these. Library callers can catch the subclasses.
+Every error class of the package is defined here.
 """
 
 
@@ -26,5 +27,13 @@ class GeometryError(ConfigError):
     """A room, array or source layout that cannot be realised (a kind of config error)."""
 
 
+class BankError(TselError):
+    """An RIR bank is missing, of the wrong kind, or does not hold what was asked for."""
+
+
 class DatasetError(TselError):
     """An output dataset is missing, incomplete or inconsistent."""
+
+
+class PredictionError(TselError):
+    """A prediction file is malformed or does not match the split."""

@@ -27,21 +27,18 @@ every active frame.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import DatasetError, TselError
-from .geometry import azimuth_difference, wrap_azimuth
+from .errors import DatasetError, PredictionError
+from .geometry import azimuth_difference, circular_mean
 from .labels import decode_distribution
-from .reader import open_dataset
+from .store.reader import open_dataset
 
 THRESHOLDS = (5.0, 10.0, 20.0)
-
-
-class PredictionError(TselError):
-    """A prediction file is malformed or does not match the split."""
+__all__ = ["PredictionError", "Prediction", "EvalResult", "evaluate", "read_predictions", "parse_prediction",
+           "scene_errors", "summarise", "write_predictions"]
 
 
 @dataclass
@@ -143,13 +140,6 @@ def parse_prediction(obj, where: str = "prediction") -> Prediction:
     return Prediction(obj["scene_id"], val)
 
 
-def circular_mean(az) -> float:
-    """Circular mean of azimuths (deg) -> deg in [-180, 180)."""
-    a = np.radians(np.asarray(az, dtype=np.float64))
-    m = math.degrees(math.atan2(np.sin(a).mean(), np.cos(a).mean()))
-    return float(wrap_azimuth(m))
-
-
 def scene_errors(pred: Prediction, azimuth: np.ndarray, active: np.ndarray, moving: bool) -> np.ndarray:
     """Errors (deg) of one scene's units: [1] for a static target, [n active frames] if moving.
 
@@ -199,8 +189,8 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
     for scene in scenes:
         moving = scene.target_moving
         err = scene_errors(preds[scene.scene_id], scene.azimuth[0].astype(np.float64), scene.active[0], moving)
-        scenario = scene.record.get("scenario", "unknown")
-        motion = scene.record.get("motion") or ("moving" if moving else "static")
+        scenario = scene.record.scenario
+        motion = scene.record.motion if scene.record.motion != "unknown" else ("moving" if moving else "static")
         all_err.append(err)
         groups_sc.setdefault(scenario, []).append(err)
         groups_mo.setdefault(motion, []).append(err)

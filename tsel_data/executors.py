@@ -6,13 +6,18 @@ every executor gives the same files, a retried task is harmless, and any schedul
 """
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import os
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
+from threadpoolctl import threadpool_limits
+
+from .choices import Executor, values
 from .errors import TselError
 
-EXECUTORS = ("local", "dask", "dask-local")
+EXECUTORS = values(Executor)
 
 
 def prepare_worker() -> None:
@@ -25,8 +30,6 @@ def prepare_worker() -> None:
     """
     for var in ("PRA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[var] = "1"
-    from threadpoolctl import threadpool_limits
-
     threadpool_limits(1)
     reuse_freed_memory()
 
@@ -47,9 +50,6 @@ def reuse_freed_memory() -> None:
     if _MALLOC_SET:
         return
     _MALLOC_SET = True
-    import ctypes
-    import ctypes.util
-
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
         mallopt = libc.mallopt
@@ -82,7 +82,7 @@ class Runner:
             self._pool = ProcessPoolExecutor(self.workers, initializer=prepare_worker)
         elif self.executor.startswith("dask"):
             try:
-                from dask.distributed import Client, LocalCluster
+                from dask.distributed import Client, LocalCluster  # optional extra, slow to import
             except ImportError:
                 raise TselError("the dask executors need dask.distributed: pip install 'tsel-data[dask]'") from None
             if self.executor == "dask-local":
@@ -97,8 +97,6 @@ class Runner:
             self._client.run(prepare_worker)
         else:
             # in this process: limit BLAS for the run only, then give the caller its threads back
-            from threadpoolctl import threadpool_limits
-
             self._limits = threadpool_limits(1)
             reuse_freed_memory()
         return self
@@ -117,7 +115,7 @@ class Runner:
         if not jobs:
             return iter(())
         if self._client is not None:
-            from dask.distributed import as_completed as dask_completed
+            from dask.distributed import as_completed as dask_completed  # optional extra
 
             # pure=False: a shard is a side effect (files); retries are safe (atomic writes)
             futures = self._client.map(fn, jobs, pure=False, retries=2)

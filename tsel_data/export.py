@@ -28,11 +28,12 @@ import os
 import numpy as np
 import soundfile as sf
 
+from .choices import WavSubtype, values
 from .errors import DatasetError, TselError
-from .reader import list_splits, open_dataset
+from .store.reader import list_splits, open_dataset
 
 CLASSES = {0: "target", 1: "interferer"}
-SUBTYPES = ("PCM_16", "PCM_24", "FLOAT")
+SUBTYPES = values(WavSubtype)
 
 
 def dcase_rows(scene, frame_hop: float = 0.1) -> list[tuple[int, int, int, int, int, int]]:

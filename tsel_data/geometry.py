@@ -1,4 +1,5 @@
-"""Coordinate and label conventions (binding; see docs/format.md).
+"""Coordinate and label conventions (binding: docs/format.md), array layouts, and the
+geometry types every stage shares.
 
 Array frame: right-handed, origin at the array centre, x = front, y = left, z = up.
 Azimuth: degrees counter-clockwise from +x seen from above, wrapped to [-180, 180).
@@ -10,9 +11,16 @@ with yaw ψ has its +x axis pointing at azimuth ψ in the room frame, so
 """
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
-FORMATS = ("mic4", "foa", "tetra")
+from .choices import ArrayFormat, values
+
+Vec3 = tuple[float, float, float]
+
+FORMATS = values(ArrayFormat)
 
 CHANNEL_NAMES = {
     "mic4": ("mic0_front_left", "mic1_back_left", "mic2_back_right", "mic3_front_right"),
@@ -22,7 +30,50 @@ CHANNEL_NAMES = {
 
 # DCASE MIC format (Eigenmike capsules 6, 10, 26, 22): (azimuth, elevation) in degrees.
 TETRA_ANGLES = ((45.0, 35.0), (-45.0, -35.0), (135.0, -35.0), (-135.0, 35.0))
-TETRA_RADIUS = 0.042
+TETRA_RADIUS = 0.042  # m
+
+SOUND_SPEED = 343.0  # m/s, every simulator and localizer of the package
+
+
+@dataclass(frozen=True)
+class Room:
+    """A shoebox room: ``dims`` (Lx, Ly, Lz) in metres and the requested RT60 in seconds."""
+
+    dims: Vec3
+    rt60: float
+
+
+@dataclass(frozen=True)
+class ArrayPose:
+    """Where the array is and how it is turned.
+
+    format: ``mic4`` | ``foa`` | ``tetra``. centre: room frame (m). yaw: degrees, the
+    direction of the array's +x axis in the room frame. side: mic4 side length (m).
+    """
+
+    format: str
+    centre: Vec3
+    yaw: float
+    side: float | None = None
+
+    def mics(self) -> np.ndarray:
+        """Channel positions [C, 3] in the array frame (metres)."""
+        return mic_positions(self.format, self.side)
+
+    def room_mic_points(self) -> list[Vec3]:
+        """Capsule positions in the room frame, in plain Python (validation runs once per
+        planned scene, where numpy's per-call cost dominates). FOA: the centre."""
+        c, s = math.cos(math.radians(self.yaw)), math.sin(math.radians(self.yaw))
+        if self.format == "mic4":
+            r = self.side / math.sqrt(2.0)
+            local = [(r * math.cos(math.radians(45 + 90 * k)), r * math.sin(math.radians(45 + 90 * k)), 0.0)
+                     for k in range(4)]
+        elif self.format == "tetra":
+            local = tetra_positions().tolist()
+        else:
+            local = [(0.0, 0.0, 0.0)]
+        x0, y0, z0 = self.centre
+        return [(x0 + c * x - s * y, y0 + s * x + c * y, z0 + z) for x, y, z in local]
 
 
 def wrap_azimuth(az):
@@ -90,14 +141,26 @@ def mic_positions(fmt: str, side: float | None = None) -> np.ndarray:
     raise ValueError(f"unknown array format {fmt!r}; expected one of {FORMATS}")
 
 
+def array_radius(fmt: str, side: float | None = None) -> float:
+    """Distance (m) of the farthest capsule from the array centre: mic4 side/√2, tetra
+    :data:`TETRA_RADIUS`, FOA 0 (coincident)."""
+    if fmt == "mic4":
+        return float(side) / math.sqrt(2.0)
+    return TETRA_RADIUS if fmt == "tetra" else 0.0
+
+
 def foa_gains(az, el) -> np.ndarray:
     """ACN/SN3D first-order gains (W, Y, Z, X) of a plane wave from (az, el) degrees.
 
     W = 1, Y = sin φ cos θ, Z = sin θ, X = cos φ cos θ. Shape [..., 4].
     """
-    a, e = np.radians(np.asarray(az, dtype=np.float64)), np.radians(np.asarray(el, dtype=np.float64))
-    a, e = np.broadcast_arrays(a, e)
-    return np.stack([np.ones_like(a), np.sin(a) * np.cos(e), np.sin(e), np.cos(a) * np.cos(e)], axis=-1)
+    return foa_gains_of(sph_to_cart(az, el, 1.0))
+
+
+def foa_gains_of(u) -> np.ndarray:
+    """The same gains from array-frame unit vectors u [..., 3]: (1, u_y, u_z, u_x)."""
+    u = np.asarray(u, dtype=np.float64)
+    return np.stack([np.ones_like(u[..., 0]), u[..., 1], u[..., 2], u[..., 0]], axis=-1)
 
 
 def frame_centres(n_frames: int, hop: float) -> np.ndarray:
@@ -109,3 +172,28 @@ def azimuth_difference(a, b):
     """Absolute angular difference in degrees, with wrap-around: in [0, 180]."""
     d = np.abs(wrap_azimuth(np.asarray(a) - np.asarray(b)))
     return np.minimum(d, 360.0 - d)
+
+
+def circular_mean(az) -> float:
+    """Circular mean of azimuths (deg) -> deg in [-180, 180)."""
+    a = np.radians(np.asarray(az, dtype=np.float64))
+    m = math.degrees(math.atan2(np.sin(a).mean(), np.cos(a).mean()))
+    return float(wrap_azimuth(m))
+
+
+def interpolate_positions(times, positions, t) -> np.ndarray:
+    """Positions (az °, el °, dist m) [len(t), 3] at times ``t`` from knot positions [K, 3].
+
+    The same linear-in-time blend as the moving renderer's crossfade (timevarying.py;
+    constant outside the knots), so labels follow exactly the rendered path; azimuth is
+    unwrapped before interpolating and wrapped to [-180, 180) after.
+    """
+    tau = np.asarray(times, dtype=np.float64).reshape(-1)
+    pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    t = np.asarray(t, dtype=np.float64)
+    if len(tau) == 1:
+        return np.broadcast_to(pos[0], t.shape + (3,)).copy()
+    az = np.degrees(np.unwrap(np.radians(pos[:, 0])))
+    out = np.stack([np.interp(t, tau, az), np.interp(t, tau, pos[:, 1]), np.interp(t, tau, pos[:, 2])], axis=-1)
+    out[..., 0] = wrap_azimuth(out[..., 0])
+    return out

@@ -13,8 +13,9 @@ import textwrap
 import numpy as np
 
 from .errors import DatasetError, TselError
+from .features import stft
 from .geometry import array_to_room, sph_to_cart
-from .reader import Scene, list_splits, open_dataset
+from .store.reader import Scene, list_splits, open_dataset
 
 SOURCE_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
 
@@ -51,25 +52,24 @@ def _fmt_vec(v) -> str:
 def summary(scene: Scene) -> str:
     """A multi-line human-readable description of a scene."""
     rec = scene.record
-    lines = [f"scene {scene.scene_id}  (split {scene.split}, index {scene.index}, seed {rec.get('seed', '?')})",
+    lines = [f"scene {scene.scene_id}  (split {scene.split}, index {scene.index}, seed {rec.seed})",
              f"query: {scene.query!r}"]
-    lines.append(f"scenario: {rec.get('scenario', '?')}   motion: {rec.get('motion', '?')}   "
-                 f"rir: {rec.get('rir_method', '?')}")
-    room = rec.get("room") or {}
-    dims = f"{' x '.join(f'{d:.2f}' for d in room['dims'])} m" if room.get("dims") else "size unknown"
-    rt60, meas = room.get("rt60"), room.get("rt60_measured")
-    if room.get("bank"):
-        lines.append(f"room: {room.get('name', '?')} of RIR bank {room['bank']}, {dims}, "
+    lines.append(f"scenario: {rec.scenario}   motion: {rec.motion}   rir: {rec.rir_method}")
+    room = rec.room
+    dims = f"{' x '.join(f'{d:.2f}' for d in room.dims)} m" if room.dims else "size unknown"
+    rt60, meas = room.rt60, room.rt60_measured
+    if room.is_bank:
+        lines.append(f"room: {room.name} of RIR bank {room.bank}, {dims}, "
                      + (f"RT60 {rt60:.2f} s" if rt60 is not None else "RT60 unknown"))
-    elif room:
+    elif room.dims or rt60 is not None:
         lines.append(f"room: {dims}, " + (f"RT60 {rt60:.2f} s requested, " if rt60 is not None else "")
                      + (f"{meas:.2f} s measured" if meas is not None else "RT60 not measured"))
-    arr = rec.get("array") or {}
-    if arr:
-        side = f" (side {arr['side']:.3f} m)" if arr.get("side") else ""
-        where = (f" at {_fmt_vec(arr['centre'])} m, front (yaw) {arr.get('yaw') or 0.0:.1f} deg"
-                 if arr.get("centre") is not None else ", position in the room unknown (labels are in the array frame)")
-        lines.append(f"array: {arr.get('format', scene.format)}{side}{where}")
+    arr = rec.array
+    if arr.format:
+        side = f" (side {arr.side:.3f} m)" if arr.side else ""
+        where = (f" at {_fmt_vec(arr.centre)} m, front (yaw) {arr.yaw or 0.0:.1f} deg"
+                 if arr.centre is not None else ", position in the room unknown (labels are in the array frame)")
+        lines.append(f"array: {arr.format}{side}{where}")
     dur = scene.audio.shape[1] / scene.fs if scene.audio is not None else scene.n_frames * scene.label_hop
     if scene.audio is not None:
         peak = float(np.max(np.abs(scene.audio)))
@@ -77,10 +77,8 @@ def summary(scene: Scene) -> str:
         lines.append(f"audio: {scene.audio.shape[0]} ch x {dur:.2f} s at {scene.fs} Hz, "
                      f"peak {20 * np.log10(peak + 1e-12):.1f} dBFS, rms {20 * np.log10(rms + 1e-12):.1f} dBFS")
     lines.append(f"labels: {scene.n_frames} frames of {scene.label_hop:g} s, {scene.n_sources} sources")
-    srcs = rec.get("sources") or [{} for _ in range(scene.n_sources)]
     for s in range(scene.n_sources):
-        info = srcs[s] if s < len(srcs) else {}
-        role = info.get("role", "target" if s == 0 else "interferer")
+        info = rec.sources[s]
         act = scene.active[s]
         az = scene.azimuth[s]
         if np.isfinite(az).any():
@@ -91,14 +89,14 @@ def summary(scene: Scene) -> str:
         else:
             pos = "no position (additive)"
         extra = []
-        if info.get("tir_db") is not None:
-            extra.append(f"TIR {info['tir_db']:.1f} dB")
-        if info.get("level_dbfs") is not None:
-            extra.append(f"level {info['level_dbfs']:.1f} dBFS")
-        lines.append(f"  [{s}] {role:<10} {info.get('clip_id', '?')}  {info.get('spatial', '')}"
-                     f"{' moving' if info.get('moving') else ''}  {pos}  active {100 * act.mean():.0f}% of frames"
+        if info.tir_db is not None:
+            extra.append(f"TIR {info.tir_db:.1f} dB")
+        if info.level_dbfs is not None:
+            extra.append(f"level {info.level_dbfs:.1f} dBFS")
+        lines.append(f"  [{s}] {info.role:<10} {info.clip_id or '?'}  {info.spatial}"
+                     f"{' moving' if info.moving else ''}  {pos}  active {100 * act.mean():.0f}% of frames"
                      + (f"  {', '.join(extra)}" if extra else ""))
-        for cap in (info.get("captions") or [])[:3]:
+        for cap in info.captions[:3]:
             lines.append(f"        caption: {cap}")
     return "\n".join(lines)
 
@@ -120,10 +118,9 @@ def source_tracks(scene: Scene) -> tuple[list[np.ndarray | None], np.ndarray, fl
     Also returns the array centre and yaw used. Scenes that do not know where the array
     stood (measured RIR banks) are drawn in the array frame (centre 0, yaw 0).
     """
-    arr = scene.record.get("array") or {}
-    room = scene.record.get("room") or {}
-    if room.get("dims") and arr.get("centre") is not None:
-        centre, yaw = np.asarray(arr["centre"], dtype=np.float64), float(arr.get("yaw", 0.0))
+    arr, room = scene.record.array, scene.record.room
+    if room.dims and arr.centre is not None:
+        centre, yaw = np.asarray(arr.centre, dtype=np.float64), float(arr.yaw or 0.0)
     else:
         centre, yaw = np.zeros(3), 0.0
     tracks = []
@@ -145,18 +142,15 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
-    from .features import stft
-
     if scene.audio is None:
         raise TselError(f"{scene.scene_id}: read with audio=False; cannot draw a spectrogram")
     fig = plt.figure(figsize=(13, 6.2))
     gs = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.35), hspace=0.35, wspace=0.22)
     ax_room, ax_az, ax_spec = fig.add_subplot(gs[:, 0]), fig.add_subplot(gs[0, 1]), fig.add_subplot(gs[1, 1])
     rec = scene.record
-    srcs = rec.get("sources") or [{} for _ in range(scene.n_sources)]
     tracks, centre, yaw = source_tracks(scene)
     # measured-bank scenes may know their room's size but not where the array stood: array frame
-    dims = (rec.get("room") or {}).get("dims") if (rec.get("array") or {}).get("centre") is not None else None
+    dims = rec.room.dims if rec.array.centre is not None else None
 
     # --- room from above ----------------------------------------------------------
     if dims:
@@ -178,8 +172,7 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
     t = scene.frame_times()
     for s, tr in enumerate(tracks):
         col = SOURCE_COLOURS[s % len(SOURCE_COLOURS)]
-        role = (srcs[s] if s < len(srcs) else {}).get("role", "target" if s == 0 else "interferer")
-        name = f"{s}: {role}"
+        name = f"{s}: {rec.sources[s].role}"
         if tr is None:
             ax_room.plot([], [], " ", label=f"{name} (additive, no position)")
             continue
@@ -200,7 +193,7 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
         col = SOURCE_COLOURS[s % len(SOURCE_COLOURS)]
         ax_az.plot(t, az, ":", color=col, lw=1)
         ax_az.plot(t, np.where(scene.active[s], az, np.nan), "-", color=col, lw=3,
-                   label=f"{s}: {'target' if s == 0 else 'interferer'}")
+                   label=f"{s}: {scene.record.sources[s].role}")
     ax_az.set_ylim(-180, 180)
     ax_az.set_yticks(range(-180, 181, 90))
     ax_az.set_xlim(0, scene.n_frames * scene.label_hop)

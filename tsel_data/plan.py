@@ -3,21 +3,28 @@
 Every random choice of scene ``index`` in ``split`` comes from one generator seeded by
 ``(dataset seed, crc32(split), index)``, so a scene does not depend on any other scene,
 on the order scenes are planned in, or on how many workers plan them.
+
+This module samples only: which bank file a dataset uses and which rooms a split may
+draw is decided in :mod:`tsel_data.banks.scenes`.
 """
 from __future__ import annotations
 
 import math
-import os
 import zlib
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from .banks.paths import sample_bank_path, sample_bank_point
+from .banks.scenes import BankRequest, open_bank_cached, split_rooms
 from .captions import max_similarity, tokens
+from .catalog import MIN_CLIPS
+from .choices import Motion, Role, Scenario, Spatial
 from .clip import Clip
 from .config import Config
-from .errors import ConfigError, GeometryError, TselError
-from .geometry import frame_centres, wrap_azimuth
-from .recipe import ArrayPose, Room, SceneRecipe, Source
+from .errors import GeometryError, TselError
+from .geometry import ArrayPose, Room, frame_centres, interpolate_positions, wrap_azimuth
+from .recipe import BankRef, BankWalk, SceneRecipe, Source
 
 MAX_TRIES = 200
 
@@ -27,8 +34,8 @@ class CatalogView:
     the resolved path of the RIR bank when scenes use one."""
 
     def __init__(self, clips: list[Clip], bank_path: str | None = None):
-        if len(clips) < 2:
-            raise TselError(f"a split needs at least 2 usable clips to make scenes, it has {len(clips)}")
+        if len(clips) < MIN_CLIPS:
+            raise TselError(f"a split needs at least {MIN_CLIPS} usable clips to make scenes, it has {len(clips)}")
         self.clips = clips
         self.tokens = [tuple(tokens(c) for c in clip.captions) for clip in clips]
         # clips cut from the same recording (AudioCaps: same YouTube video) are one sound source
@@ -36,16 +43,25 @@ class CatalogView:
         self.bank_path = bank_path
 
 
+def bank_request(cfg: Config) -> BankRequest:
+    """What the config asks of its RIR bank (plain values for :mod:`tsel_data.banks.scenes`)."""
+    return BankRequest(cfg.room.bank, cfg.scene.format, cfg.audio.fs, cfg.rooms_by_split(), cfg.active_splits())
+
+
 def scene_rng(seed: int, split: str, index: int) -> np.random.Generator:
+    """The generator of every draw of scene ``index`` of ``split``."""
     return np.random.default_rng([seed, zlib.crc32(split.encode("utf-8")), index])
 
 
-def plan_split(cfg: Config, split: str, catalog: CatalogView, start: int = 0, stop: int | None = None) -> list[SceneRecipe]:
-    stop = cfg.splits[split].count if stop is None else stop
-    return [plan_scene(cfg, split, i, catalog) for i in range(start, stop)]
-
-
 def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRecipe:
+    """The recipe of scene ``index`` of ``split``.
+
+    Draws, in order: scenario, interferer count, the target clip and the caption used as
+    the query, interferers whose captions are not too similar to the query
+    (``scene.caption_similarity``), TIRs, then the room, array and source placement
+    (simulated rooms) or the bank room and each source's walk (``cat.bank_path``).
+    Raises TselError/GeometryError when no valid scene can be drawn.
+    """
     rng = scene_rng(cfg.seed, split, index)
     sc = cfg.scene
     scenario = sc.scenario.sample(rng)
@@ -58,18 +74,19 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     for _ in range(n_int):
         chosen.append(_pick_interferer(rng, cat, chosen, cat.tokens[t][q], sc.caption_similarity, split, index))
 
-    spatial = ["directional"] + ["additive" if (scenario == "directional+additive" and k == 0) else "directional"
-                                 for k in range(n_int)]
+    spatial = [Spatial.DIRECTIONAL] + [
+        Spatial.ADDITIVE if (scenario == Scenario.DIRECTIONAL_ADDITIVE and k == 0) else Spatial.DIRECTIONAL
+        for k in range(n_int)]
     tir = [None] + [float(sc.tir_db.sample(rng)) for _ in range(n_int)]
     if cat.bank_path:
-        room, array, places, extra = _place_bank(cfg, rng, spatial, split, index, cat.bank_path)
+        room, array, places, bank = _place_bank(cfg, rng, spatial, split, index, cat.bank_path)
     else:
-        (room, array, places), extra = _place(cfg, rng, spatial, split, index), {}
+        (room, array, places), bank = _place(cfg, rng, spatial, split, index), None
     sources = []
     for k, ci in enumerate(chosen):
         clip = cat.clips[ci]
         sources.append(Source(
-            role="target" if k == 0 else "interferer", clip_id=clip.id, audio=clip.audio,
+            role=Role.TARGET if k == 0 else Role.INTERFERER, clip_id=clip.id, audio=clip.audio,
             captions=clip.captions, spatial=spatial[k], offset=clip.offset,
             tir_db=None if tir[k] is None else round(tir[k], 4), **(places[k] or {}),
         ))
@@ -79,7 +96,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
         scenario=scenario, query=query, array=array, sources=tuple(sources), room=room,
         fs=a.fs, duration=a.duration, label_hop=a.label_hop,
         rir_method="bank" if cat.bank_path else cfg.room.rir_method,
-        target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db, extra=extra,
+        target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db, bank=bank,
     )
     return recipe.validate(wall_margin=cfg.sources.wall_margin - 1e-6)
 
@@ -107,7 +124,7 @@ def _place(cfg: Config, rng, spatial: list[str], split: str, index: int):
     room = Room(tuple(round(d, 4) for d in dims), round(float(rc.rt60.sample(rng)), 4))
     side = round(float(ac.side.sample(rng)), 5) if fmt == "mic4" else None
     yaw = round(float(ac.yaw.sample(rng)), 4)
-    moving = [sp == "directional" and _moves(cfg, rng) for sp in spatial]
+    moving = [sp == Spatial.DIRECTIONAL and _moves(cfg, rng) for sp in spatial]
     for _ in range(MAX_TRIES // 10):
         centre = (
             float(rng.uniform(ac.wall_margin, room.dims[0] - ac.wall_margin)),
@@ -127,7 +144,7 @@ def _place(cfg: Config, rng, spatial: list[str], split: str, index: int):
 
 def _moves(cfg: Config, rng) -> bool:
     m = cfg.scene.motion
-    return m == "moving" or (m == "mixed" and bool(rng.random() < cfg.scene.moving_fraction))
+    return m == Motion.MOVING or (m == Motion.MIXED and bool(rng.random() < cfg.scene.moving_fraction))
 
 
 def _frame_centres(cfg: Config) -> np.ndarray:
@@ -156,7 +173,7 @@ def _place_sources(cfg, rng, spatial, moving, room: Room, centre, yaw):
     placed: list[np.ndarray] = []  # azimuth track of each directional source at the label frames
     out = []
     for sp, mv in zip(spatial, moving):
-        if sp == "additive":
+        if sp == Spatial.ADDITIVE:
             out.append(None)
             continue
         for _ in range(MAX_TRIES // 4):
@@ -205,14 +222,14 @@ def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, d: f
     most ω·d/r_h. Knots every min(100 ms, 4° / that azimuth rate): a knot at least every
     100 ms and every 4° of azimuth.
     """
-    kind = cfg.scene.path.sample(rng)
+    kind = cfg.scene.path.sample(rng)  # a PathKind value
     speed = float(cfg.scene.speed.sample(rng))
     direction = 1 if rng.random() < 0.5 else -1
     dur = cfg.audio.duration
     az_rate = speed * d / r_h  # °/s of azimuth: the arc's, and the line's at its closest
     hop = min(KNOT_HOP_S, KNOT_STEP_DEG / az_rate) if speed > 0 else dur
     t = np.arange(0.0, dur + hop - 1e-9, hop)
-    if kind == "arc":
+    if kind == "arc":  # PathKind.ARC
         a = np.radians(az0 + yaw + direction * az_rate * t)
         x, y = centre[0] + r_h * np.cos(a), centre[1] + r_h * np.sin(a)
         track = az0 + direction * az_rate * fc
@@ -237,12 +254,10 @@ def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, d: f
 
 
 def _place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, bank_path: str):
-    """A bank room for the split, the bank's array, and each source's walk or point."""
-    from .banks import sample_bank_path, sample_bank_point
-    from .timevarying import interpolate_positions
-
+    """A bank room for the split, the bank's array, and each source's walk or point:
+    (None, ArrayPose, [{"bank": BankWalk} or None per source], BankRef)."""
     bank = open_bank_cached(bank_path, cfg.scene.format)
-    rooms = split_rooms(cfg, split, bank)
+    rooms = split_rooms(bank, cfg.rooms_by_split(), split)
     room_name = rooms[int(rng.integers(len(rooms)))]
     info = bank.room_info(room_name)
     side = (info.get("array") or {}).get("side") if bank.format == "mic4" else None
@@ -251,7 +266,7 @@ def _place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, ba
     placed: list[np.ndarray] = []
     out = []
     for sp in spatial:
-        if sp == "additive":
+        if sp == Spatial.ADDITIVE:
             out.append(None)
             continue
         mv = _moves(cfg, rng)
@@ -266,89 +281,14 @@ def _place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, ba
             track = interpolate_positions(times, pos, fc)[:, 0]
             if _separated(track, placed, cfg.scene):
                 placed.append(track)
-                out.append({"bank": {
-                    "room": room_name, "trajectory": tid, "indices": [int(v) for v in idx],
-                    "times": [round(float(v), 6) for v in times],
-                    "positions": [[round(float(v), 4) for v in p] for p in pos]}})
+                out.append({"bank": BankWalk(
+                    room_name, tid, tuple(int(v) for v in idx), tuple(round(float(v), 6) for v in times),
+                    tuple(tuple(round(float(v), 4) for v in p) for p in pos))})
                 break
         else:
             raise GeometryError(f"scene {split}/{index}: could not place sources {cfg.scene.min_separation}° apart "
                                 f"in bank room {room_name}; lower scene.min_separation")
-    return None, array, out, {"bank": bank_path, "bank_room": room_name}
-
-
-BUILTIN_DEMO_BANK = "builtin:demo-bank"
-
-
-def resolve_bank(cfg: Config, out_dir: str) -> str | None:
-    """The bank file scenes will use (absolute), checked against the config; None without one.
-
-    ``builtin:demo-bank`` builds a small simulated bank into ``OUT/demo-bank.h5`` once.
-    """
-    path = cfg.room.bank
-    if not path:
-        roomed = [n for n, sp in cfg.splits.items() if sp.rooms and sp.count]
-        if roomed:
-            raise ConfigError(f"splits.{roomed[0]}.rooms names RIR-bank rooms but room.bank is not set; "
-                              f"pass --bank PATH (a TAU-SRIR DB folder, SOFA files or a tsel bank)")
-        return None
-    if path == BUILTIN_DEMO_BANK:
-        from .banks.build import build_bank
-
-        path = os.path.join(out_dir, "demo-bank.h5")
-        if not os.path.exists(path):
-            build_bank(path, format=cfg.scene.format, n_rooms=4, seed=0, fs=cfg.audio.fs,
-                       distances=(1.0, 2.0), heights=(-0.3, 0.3), step_deg=10.0)
-    path = os.path.abspath(os.path.expanduser(path))
-    from dataclasses import replace
-
-    from .check import bank_problems
-
-    problems = bank_problems(replace(cfg, room=replace(cfg.room, bank=path)))  # format, sample rate, rooms
-    if problems:
-        raise problems[0]
-    bank = open_bank_cached(path, cfg.scene.format)
-    for split, sp in cfg.splits.items():
-        if sp.count:
-            split_rooms(cfg, split, bank)  # raises on a room the bank does not have
-    return path
-
-
-_BANKS: dict = {}
-
-
-def open_bank_cached(path: str, fmt: str | None = None):
-    """One open bank per process, path and array format (banks read lazily, so this stays
-    small). ``fmt`` picks the format where a bank holds several (TAU's foa and mic, a
-    folder of SpatialScaper's _foa and _mic SOFA files)."""
-    from .banks import open_bank
-
-    key = (path, fmt)
-    if key not in _BANKS:
-        _BANKS[key] = open_bank(path, format=fmt)
-    return _BANKS[key]
-
-
-def split_rooms(cfg: Config, split: str, bank) -> list[str]:
-    """The bank rooms a split may use: ``splits.NAME.rooms`` (names or numbers); if empty,
-    the rooms no other split names (all of them when no split names any), so an
-    unlisted split never draws another split's rooms."""
-    wanted = cfg.splits[split].rooms
-    if wanted:
-        return [bank.resolve_room(r) for r in wanted]
-    claimed = set()
-    for name, sp in cfg.splits.items():
-        for r in sp.rooms if name != split else ():
-            try:
-                claimed.add(bank.resolve_room(r))
-            except TselError:
-                pass  # not in this bank, so never drawn from it (tsel check reports it for splits made now)
-    free = [r for r in bank.rooms if r not in claimed]
-    if not free:
-        raise ConfigError(f"splits.{split}.rooms is empty and every room of {bank.source} is named by another split; "
-                          f"give splits.{split}.rooms its own rooms")
-    return free
-
+    return None, array, out, BankRef(bank_path, room_name)
 
 
 _WORKER_STATE: dict = {}
@@ -373,7 +313,5 @@ def plan_split_json(cfg: Config, split: str, cat: CatalogView, workers: int = 1,
     if workers <= 1 or len(bounds) <= 1:
         _init_planner(cfg, split, cat)
         return [line for b in bounds for line in _plan_chunk(b)]
-    from concurrent.futures import ProcessPoolExecutor
-
     with ProcessPoolExecutor(workers, initializer=_init_planner, initargs=(cfg, split, cat)) as ex:
         return [line for lines in ex.map(_plan_chunk, bounds) for line in lines]

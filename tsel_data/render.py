@@ -8,6 +8,9 @@ down together and the scaling is recorded (``levels.normalisation_db``).
 
 Labels: frame k covers [k·hop, (k+1)·hop); its position is the source's position at
 the frame centre, in the array frame.
+
+The record (:class:`~tsel_data.store.records.SceneRecord`) says everything else about
+the scene: room, array pose, clips, placements, levels.
 """
 from __future__ import annotations
 
@@ -15,12 +18,18 @@ import numpy as np
 
 from .acoustics import simulate_rirs
 from .audio import active_rms, db, frame_activity, load_clip_cached
+from .banks.scenes import open_bank_cached
+from .choices import Spatial
 from .errors import AudioError
 from .geometry import CHANNEL_NAMES, cart_to_sph, frame_centres
 from .recipe import SceneRecipe, array_frame_position_at
+from .store.records import (LABEL_DECIMALS, ArrayRecord, LevelsRecord, RoomRecord, SceneRecord, SourceRecord,
+                            label_list)
 from .store.writer import RenderedScene
-from .timevarying import interpolate_positions, render_moving, render_static
+from .timevarying import render_moving, render_static
 
+# The mix's peak is kept below full scale, so 16-bit exports do not clip: if the mixed
+# scene would exceed it, every source is scaled down together (levels.normalisation_db).
 PEAK_LIMIT = 0.99
 
 
@@ -48,12 +57,11 @@ def source_labels(recipe: SceneRecipe, k: int) -> tuple[np.ndarray, np.ndarray, 
     """(azimuth, elevation, distance) [F] of source k in the array frame; NaN if positionless."""
     s = recipe.sources[k]
     f = recipe.n_frames
-    if s.spatial != "directional":
+    if s.spatial != Spatial.DIRECTIONAL:
         nan = np.full(f, np.nan, dtype=np.float32)
         return nan, nan.copy(), nan.copy()
     if s.bank is not None:
-        # the renderer's crossfade weights, applied to the bank positions of its knots
-        p = interpolate_positions(s.bank["times"], s.bank["positions"], frame_times(recipe))
+        p = s.bank.positions_at(frame_times(recipe))
         return p[:, 0].astype(np.float32), p[:, 1].astype(np.float32), p[:, 2].astype(np.float32)
     az, el, dist = cart_to_sph(array_frame_position_at(recipe, s, frame_times(recipe)))
     return az.astype(np.float32), el.astype(np.float32), dist.astype(np.float32)
@@ -71,14 +79,14 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
     images = np.zeros((len(recipe.sources), len(CHANNEL_NAMES[fmt]), n), dtype=np.float32)
     rt60 = None
     static = [k for k, s in enumerate(recipe.sources)
-              if s.spatial == "directional" and s.bank is None and not s.path]
+              if s.spatial == Spatial.DIRECTIONAL and s.bank is None and not s.path]
     if static:
         pts = np.array([recipe.sources[k].position for k in static], dtype=np.float64)
         rs = simulate_rirs(recipe.room, recipe.array, pts, fs, method=recipe.rir_method, seed=recipe.seed)
         rt60 = rs.rt60_measured
         images[static] = convolve(dry[static], rs.rirs, n)
     for k, s in enumerate(recipe.sources):
-        if s.spatial == "additive":
+        if s.spatial == Spatial.ADDITIVE:
             if fmt == "foa":
                 images[k, 0] = dry[k]
             else:
@@ -91,15 +99,21 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
             images[k] = render_moving(dry[k], rs.rirs, knots[:, 0], fs)[:, :n]
         elif s.bank is not None:
             b = s.bank
-            rirs = _bank(recipe).views(b["room"], b["trajectory"], b["indices"])
+            rirs = _bank(recipe).views(b.room, b.trajectory, b.indices)
             if len(rirs) == 1:
                 images[k] = convolve(dry[k:k + 1], rirs[0][None], n)[0]
             else:
-                images[k] = render_moving(dry[k], rirs, np.asarray(b["times"]), fs)[:, :n]
+                images[k] = render_moving(dry[k], rirs, np.asarray(b.times), fs)[:, :n]
     return images, rt60
 
 
 def render_scene(recipe: SceneRecipe) -> RenderedScene:
+    """Render one scene: the mixture [C, T], per-frame labels [S, F] and its record.
+
+    Depends on nothing but the recipe and the files it names (clips, the RIR bank), so
+    any worker, at any time, renders the same bytes. Raises AudioError for a source
+    silent in the part of its clip the scene uses.
+    """
     fs, hop, nf = recipe.fs, recipe.label_hop, recipe.n_frames
     fmt = recipe.array.format
     dry = np.stack([load_clip_cached(s.audio, fs, recipe.duration, s.offset) for s in recipe.sources])
@@ -131,53 +145,42 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
     mics = recipe.array.mics().astype(np.float32)
 
     room, centre, yaw = _room_and_pose(recipe, rt60_measured)
-    record = {
-        "scene_id": recipe.scene_id, "split": recipe.split, "index": recipe.index, "seed": recipe.seed,
-        "scenario": recipe.scenario, "query": recipe.query,
-        "motion": "moving" if any(s.moving for s in recipe.sources) else "static",
-        "rir_method": recipe.rir_method,
-        "room": room,
-        "array": {"format": fmt, "centre": centre, "yaw": yaw,
-                  "side": recipe.array.side, "mic_positions": np.round(mics.astype(np.float64), 6).tolist()},
-        "sources": [
-            {"role": s.role, "clip_id": s.clip_id, "audio": s.audio, "captions": list(s.captions),
-             "spatial": s.spatial, "moving": s.moving,
-             "position": None if s.position is None else list(s.position),
-             "path": None if not s.path else [list(kn) for kn in s.path],
-             "bank": s.bank,
-             "azimuth": _round(az[k]), "elevation": _round(el[k]), "distance": _round(dist[k], 4),
-             "active": active[k].tolist(), "tir_db": s.tir_db,
-             "gain_db": round(db(gains[k] * norm), 3),
-             "level_dbfs": round(db(levels[k] * gains[k] * norm), 3)}
-            for k, s in enumerate(recipe.sources)
-        ],
-        "levels": {"target_level_dbfs": recipe.target_level_dbfs, "peak": round(peak * norm, 6),
-                   "normalisation_db": round(db(norm), 3)},
-    }
+    record = SceneRecord(
+        scene_id=recipe.scene_id, split=recipe.split, index=recipe.index, seed=recipe.seed,
+        scenario=recipe.scenario, query=recipe.query, motion="moving" if recipe.moving else "static",
+        rir_method=recipe.rir_method, room=room,
+        array=ArrayRecord(fmt, centre, yaw, recipe.array.side, np.round(mics.astype(np.float64), 6).tolist()),
+        sources=tuple(
+            SourceRecord(
+                role=s.role, clip_id=s.clip_id, audio=s.audio, captions=list(s.captions), spatial=s.spatial,
+                moving=s.moving, position=None if s.position is None else list(s.position),
+                path=None if not s.path else [list(kn) for kn in s.path], bank=s.bank,
+                azimuth=label_list(az[k], LABEL_DECIMALS["azimuth"]),
+                elevation=label_list(el[k], LABEL_DECIMALS["elevation"]),
+                distance=label_list(dist[k], LABEL_DECIMALS["distance"]),
+                active=active[k].tolist(), tir_db=s.tir_db, gain_db=round(db(gains[k] * norm), 3),
+                level_dbfs=round(db(levels[k] * gains[k] * norm), 3))
+            for k, s in enumerate(recipe.sources)),
+        levels=LevelsRecord(recipe.target_level_dbfs, round(peak * norm, 6), round(db(norm), 3)),
+    )
     return RenderedScene(recipe.scene_id, recipe.query, mix, az, el, dist, active, mics, record)
 
 
 def _bank(recipe: SceneRecipe):
-    from .plan import open_bank_cached
-
-    return open_bank_cached(recipe.extra["bank"], recipe.array.format)
+    return open_bank_cached(recipe.bank.path, recipe.array.format)
 
 
-def _room_and_pose(recipe: SceneRecipe, rt60_measured) -> tuple[dict, list | None, float | None]:
+def _room_and_pose(recipe: SceneRecipe, rt60_measured) -> tuple[RoomRecord, list | None, float | None]:
     """The room record, and the array's centre and yaw in the room: the recipe's, or for
     bank scenes what the bank says (simulated banks know the pose; measured ones do not:
-    null)."""
+    None)."""
     if recipe.room is not None:
-        room = {"dims": list(recipe.room.dims), "rt60": recipe.room.rt60, "rt60_measured": rt60_measured}
+        room = RoomRecord(list(recipe.room.dims), recipe.room.rt60, rt60_measured)
         return room, list(recipe.array.centre), recipe.array.yaw
-    info = _bank(recipe).room_info(recipe.extra["bank_room"])
-    room = {"name": recipe.extra["bank_room"], "bank": recipe.extra["bank"],
-            "dims": info.get("dims", info.get("dimensions")), "rt60": info.get("rt60"), "rt60_measured": None}
+    info = _bank(recipe).room_info(recipe.bank.room)
+    room = RoomRecord(info.get("dims", info.get("dimensions")), info.get("rt60"), None, recipe.bank.room,
+                      recipe.bank.path)
     arr = info.get("array") or {}
     if arr.get("centre") is None or arr.get("yaw") is None:
         return room, None, None
     return room, [float(v) for v in arr["centre"]], float(arr["yaw"])
-
-
-def _round(a: np.ndarray, nd: int = 3) -> list:
-    return [None if not np.isfinite(v) else round(float(v), nd) for v in a]

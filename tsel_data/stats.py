@@ -12,9 +12,8 @@ from collections import Counter
 
 import numpy as np
 
-from .evaluate import circular_mean
-from .geometry import azimuth_difference
-from .reader import list_splits, open_dataset
+from .geometry import azimuth_difference, circular_mean
+from .store.reader import list_splits, open_dataset
 
 AZ_BIN = 10
 
@@ -47,18 +46,16 @@ def split_stats(root: str, split: str) -> dict:
     moving = 0
     for sc in scenes:
         rec = sc.record
-        srcs = rec.get("sources") or [{} for _ in range(sc.n_sources)]
-        scenarios[rec.get("scenario", "unknown")] += 1
-        motions[rec.get("motion", "unknown")] += 1
-        is_moving = any(s.get("moving") for s in srcs) or rec.get("motion", "static") != "static"
-        moving += bool(is_moving)
-        for k, s in enumerate(srcs):
-            if s.get("clip_id") is not None:
-                clip_uses[s["clip_id"]] += 1
+        scenarios[rec.scenario] += 1
+        motions[rec.motion] += 1
+        moving += any(s.moving for s in rec.sources) or rec.motion == "moving"
+        for k, s in enumerate(rec.sources):
+            if s.clip_id is not None:
+                clip_uses[s.clip_id] += 1
                 if k == 0:
-                    target_clips[s["clip_id"]] += 1
-            if k > 0 and s.get("tir_db") is not None:
-                raw["tir"].append(s["tir_db"])
+                    target_clips[s.clip_id] += 1
+            if k > 0 and s.tir_db is not None:
+                raw["tir"].append(s.tir_db)
         act = sc.active.astype(bool)
         t_az = _mean_az(sc.azimuth[0], act[0])
         raw["target_az"].append(t_az)
@@ -70,18 +67,17 @@ def split_stats(root: str, split: str) -> dict:
         for s in range(1, sc.n_sources):
             if np.isfinite(sc.distance[s]).any():
                 raw["interferer_dist"].append(float(np.nanmean(sc.distance[s])))
-        room = rec.get("room") or {}
-        if room.get("dims"):
-            x, y, z = room["dims"]
+        room = rec.room
+        if room.dims:
+            x, y, z = room.dims
             raw["room_x"].append(x)
             raw["room_y"].append(y)
             raw["room_z"].append(z)
             raw["volume"].append(x * y * z)
-        raw["rt60"].append(room.get("rt60"))
-        raw["rt60_measured"].append(room.get("rt60_measured"))
-        lv = rec.get("levels") or {}
-        raw["target_level"].append(lv.get("target_level_dbfs"))
-        raw["peak"].append(lv.get("peak"))
+        raw["rt60"].append(room.rt60)
+        raw["rt60_measured"].append(room.rt60_measured)
+        raw["target_level"].append(rec.levels.target_level_dbfs)
+        raw["peak"].append(rec.levels.peak)
         raw["target_active"].append(float(act[0].mean()))
         raw["query_words"].append(len(sc.query.split()))
     n = len(scenes)

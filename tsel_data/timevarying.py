@@ -47,7 +47,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import fft
-from .geometry import wrap_azimuth
+from .geometry import interpolate_positions  # noqa: F401  (labels use the renderer's blend; documented here)
 
 _GROUP_BYTES = 2 << 20  # RIR spectra of one group of knots: about one core's L2
 
@@ -292,20 +292,3 @@ def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h) -> np.ndarray:
             acc[keep:used] = 0
             a0, used = a0 + done, keep
     return out.reshape(C, -1)[:, -o : -o + T + L - 1]
-
-
-def interpolate_positions(times, positions, t) -> np.ndarray:
-    """Positions (az °, el °, dist m) [len(t), 3] at times ``t`` from knot positions [K, 3].
-
-    The same linear-in-time blend as the renderer's crossfade (constant outside the
-    knots); azimuth is unwrapped before interpolating and wrapped to [-180, 180) after.
-    """
-    tau = np.asarray(times, dtype=np.float64).reshape(-1)
-    pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    t = np.asarray(t, dtype=np.float64)
-    if len(tau) == 1:
-        return np.broadcast_to(pos[0], t.shape + (3,)).copy()
-    az = np.degrees(np.unwrap(np.radians(pos[:, 0])))
-    out = np.stack([np.interp(t, tau, az), np.interp(t, tau, pos[:, 1]), np.interp(t, tau, pos[:, 2])], axis=-1)
-    out[..., 0] = wrap_azimuth(out[..., 0])
-    return out

@@ -20,7 +20,7 @@ except ImportError as e:  # pragma: no cover - exercised only without torch
 
 
 from .labels import scene_targets
-from .reader import open_dataset
+from .store.reader import open_dataset
 
 
 class Dataset(torch.utils.data.Dataset):

@@ -24,11 +24,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .acoustics import SOUND_SPEED
-from .evaluate import circular_mean
 from .features import mic_pairs, stft
-from .geometry import azimuth_difference, sph_to_cart, wrap_azimuth
-from .reader import list_splits, open_dataset
+from .geometry import SOUND_SPEED, azimuth_difference, circular_mean, sph_to_cart, wrap_azimuth
+from .store.reader import list_splits, open_dataset
 
 _EPS = 1e-12
 
@@ -99,8 +97,12 @@ def _intensity_maps(spec, mask, owner, n_frames, smooth_deg: float = 4.0) -> np.
     n_j = spec.shape[1]
     flat = (np.arange(n_j)[:, None] * 360 + bins).ravel()
     hist = np.bincount(flat, weights=weight.ravel(), minlength=n_j * 360).reshape(n_j, 360)
-    hist = _per_label_frame(hist, owner, n_frames)
-    # Circular Gaussian smoothing, so near-identical directions pool into one peak.
+    return _smooth_circular(_per_label_frame(hist, owner, n_frames), smooth_deg)
+
+
+def _smooth_circular(hist: np.ndarray, smooth_deg: float) -> np.ndarray:
+    """Circular Gaussian smoothing of 1° azimuth histograms [..., 360], so near-identical
+    directions pool into one peak."""
     d = np.minimum(np.arange(360), 360 - np.arange(360))
     kern = np.exp(-0.5 * (d / smooth_deg) ** 2)
     return np.real(np.fft.ifft(np.fft.fft(hist, axis=-1) * np.fft.fft(kern), axis=-1))
@@ -113,10 +115,7 @@ def vote_histogram(maps: np.ndarray, smooth_deg: float = 3.0) -> np.ndarray:
     e.g. a steady hum of a source labelled inactive, from outweighing the majority.
     """
     votes = np.argmax(maps, axis=1)[np.ptp(maps, axis=1) > 0]
-    hist = np.bincount(votes, minlength=360).astype(np.float64)
-    d = np.minimum(np.arange(360), 360 - np.arange(360))
-    kern = np.exp(-0.5 * (d / smooth_deg) ** 2)
-    return np.real(np.fft.ifft(np.fft.fft(hist) * np.fft.fft(kern)))
+    return _smooth_circular(np.bincount(votes, minlength=360).astype(np.float64), smooth_deg)
 
 
 def _peaks(m: np.ndarray, k: int, min_sep: float) -> list[int]:
@@ -139,8 +138,7 @@ def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: in
     maps = doa_maps(scene.audio, scene.fs, scene.label_hop, scene.n_frames, scene.format, scene.mic_positions, **map_kw)
     az_all = scene.azimuth.astype(np.float64)
     directional = [s for s in range(scene.n_sources) if np.isfinite(az_all[s]).any()]
-    roles = [src.get("role", "target" if i == 0 else "interferer")
-             for i, src in enumerate(scene.record.get("sources") or [{}] * scene.n_sources)]
+    roles = [src.role for src in scene.record.sources]
     active = scene.active.astype(bool)
     results = []
     for s in directional:
@@ -196,10 +194,6 @@ class VerifyReport:
 
     def to_dict(self) -> dict:
         return {"tolerance": self.tolerance, "splits": self.splits}
-
-    @property
-    def disagreements(self) -> int:
-        return sum(len(v["disagree"]) for v in self.splits.values())
 
     def format_text(self, max_list: int = 20) -> str:
         lines = [f"label check with a classical localizer (tolerance {self.tolerance:g} deg)",

@@ -8,40 +8,12 @@ r / c · fs samples (no filter latency left in).
 Methods: ``pyroomacoustics`` (the library's default path, as users write it: absorption
 and max order from ``inverse_sabine``, ``compute_rir``), and the project's own
 ``ism`` / ``hybrid`` (see shoebox.py, docs/acoustics.md).
+
+Import order: ``base`` (RirSet), then ``metrics``, ``ism``, ``late``, then the methods
+``shoebox`` and ``pyroom``, then ``simulate`` (the dispatcher).
 """
-from __future__ import annotations
+from ..geometry import SOUND_SPEED
+from .base import RirSet
+from .simulate import RIR_METHODS, simulate_rirs
 
-from dataclasses import dataclass
-
-import numpy as np
-
-SOUND_SPEED = 343.0
-RIR_METHODS = ("hybrid", "ism", "pyroomacoustics")
-
-
-@dataclass
-class RirSet:
-    """rirs: float32 [S, C, L] (point, channel, sample). rt60_measured: T30 (s) of the
-    omni/W response of the first point, or None when it was not measured."""
-
-    rirs: np.ndarray
-    rt60_measured: float | None = None
-
-
-def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: int = 0,
-                  one_source: bool = False) -> RirSet:
-    """RIRs [S, C, L] from room-frame ``points`` [S, 3] to ``array``'s channels.
-
-    one_source: the points are the knots of one moving source (the stochastic late tail
-    is then one realisation shared by all knots).
-    """
-    points = np.atleast_2d(np.asarray(points, dtype=np.float64))
-    if method == "pyroomacoustics":
-        from .pyroom import pyroom_rirs
-
-        return pyroom_rirs(room, array, points, fs, seed=seed)
-    if method in ("ism", "hybrid"):
-        from .shoebox import shoebox_rirs
-
-        return shoebox_rirs(room, array, points, fs, method=method, seed=seed, one_source=one_source)
-    raise ValueError(f"unknown RIR method {method!r}; expected one of {RIR_METHODS}")
+__all__ = ["RIR_METHODS", "RirSet", "SOUND_SPEED", "simulate_rirs"]

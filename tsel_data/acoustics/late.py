@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft as sfft
 
-from . import SOUND_SPEED
+from ..geometry import SOUND_SPEED
 
 FOA_DIFFUSE_GAINS = np.array([1.0, 1.0, 1.0, 1.0]) / np.sqrt([1.0, 3.0, 3.0, 3.0])
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pyroomacoustics as pra
 
-from ..geometry import array_to_room
-from . import SOUND_SPEED, RirSet
+from ..geometry import SOUND_SPEED, array_to_room
+from .base import RirSet
 
 # pyroomacoustics centres its fractional-delay filter, which delays every RIR by half
 # the filter length; we remove it so sample 0 is the emission time.

@@ -28,14 +28,15 @@ from functools import lru_cache
 import numpy as np
 from scipy.signal import butter, sosfilt
 
+from ..choices import RirMethod
 from ..errors import GeometryError
-from ..geometry import array_to_room
-from . import SOUND_SPEED, RirSet
+from ..geometry import SOUND_SPEED, array_to_room, foa_gains_of
+from .base import RirSet
 from .ism import FD_TAPS, add_impulses, decay_model, fd_energy_gain, grid_to_signal, image_chunks, model_edc, new_grid
 from .late import diffuse_noise
 from .metrics import decay_time, t30
 
-METHODS = ("hybrid", "ism")
+METHODS = (RirMethod.HYBRID, RirMethod.ISM)
 TRANSITION = 0.080  # s, hybrid: image sources before, diffuse tail after
 FADE = 0.010  # s, cross-fade width around the transition
 HIGHPASS = 20.0  # Hz, DC blocker on the image-source part (see _dc_blocker)
@@ -56,8 +57,8 @@ def shoebox_rirs(
 ) -> RirSet:
     """RIRs from room-frame ``points`` [S, 3] (m) to the channels of ``array``.
 
-    room: :class:`~tsel_data.recipe.Room` (dims m, rt60 s). array:
-    :class:`~tsel_data.recipe.ArrayPose`. fs: Hz. method: ``hybrid`` | ``ism``. seed:
+    room: :class:`~tsel_data.geometry.Room` (dims m, rt60 s). array:
+    :class:`~tsel_data.geometry.ArrayPose`. fs: Hz. method: ``hybrid`` | ``ism``. seed:
     the late tail's noise (numpy Generator; ``ism`` is deterministic anyway).
     max_order: keep image sources with at most this many reflections (0 = free field);
     a finite order also drops the hybrid tail. transition: hybrid transition time (s),
@@ -207,17 +208,18 @@ def _add(grid, ch, t, amp, fs, fade) -> None:
 def _add_foa(grid, pos, amp, centre, yaw, fs, fade) -> None:
     """Encode images at ``pos`` [N, 3] (room frame) into W, Y, Z, X (ACN/SN3D) of an
     array at ``centre`` turned by ``yaw`` degrees: gains 1, u_y, u_z, u_x of the unit
-    direction u in the array frame (DESIGN.md)."""
+    direction u in the array frame (geometry.foa_gains_of, the convention of docs/format.md)."""
     v = pos - centre
     r = np.linalg.norm(v, axis=1)
     c, s = np.cos(np.radians(yaw)), np.sin(np.radians(yaw))
     ux = (c * v[:, 0] + s * v[:, 1]) / r  # Rz(-yaw) v
     uy = (-s * v[:, 0] + c * v[:, 1]) / r
     uz = v[:, 2] / r
+    gains = foa_gains_of(np.stack([ux, uy, uz], axis=-1))  # [N, 4]
     t = r / SOUND_SPEED
     w = amp / (4 * np.pi * r) * _fade_out(t, fade)
-    for ch, g in enumerate((None, uy, uz, ux)):
-        add_impulses(grid, ch, t * fs, w if g is None else w * g)
+    for ch in range(4):
+        add_impulses(grid, ch, t * fs, w if ch == 0 else w * gains[:, ch])
 
 
 def _late_tail(rng, dims, a, rt60, mics, foa, fs, n_len, t_mix, n_points) -> np.ndarray:

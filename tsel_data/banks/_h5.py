@@ -12,6 +12,8 @@ import os
 import h5py
 import numpy as np
 
+from ..errors import BankError
+
 
 class H5Pool:
     def __init__(self):
@@ -33,8 +35,6 @@ class H5Pool:
             try:
                 f = h5py.File(key, "r")
             except OSError as e:
-                from . import BankError
-
                 why = str(e).split("(")[-1].rstrip(")") if "(" in str(e) else str(e)
                 raise BankError(f"{key}: cannot be read as HDF5 ({why}); the file is damaged or incomplete, "
                                 f"copy or download it again") from None
@@ -141,8 +141,6 @@ def read_rows(ds, rows) -> "np.ndarray":
     h5py's fancy (list) selection builds a point/hyperslab union that is ~15x slower
     than reading the runs directly; walks along a trajectory are strided runs.
     """
-    import numpy as np
-
     rows = np.asarray(rows, dtype=np.int64)
     out = np.empty((len(rows),) + tuple(ds.shape[1:]), dtype=np.float32 if ds.dtype.kind == "f" else ds.dtype)
     if _one_raw_chunk_per_row(ds):

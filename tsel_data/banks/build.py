@@ -15,12 +15,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import GeometryError
-from ..geometry import array_to_room, sph_to_cart
-from ..recipe import ArrayPose, Room
-from . import BankError, MemoryBank, Trajectory, check_format
+from ..acoustics import simulate_rirs
+from ..errors import BankError, GeometryError
+from ..geometry import ArrayPose, Room, array_to_room, sph_to_cart
+from .base import MemoryBank, Trajectory, check_format
+from .native import write_bank
 
-DEMO = dict(n_rooms=1, distances=(1.0, 1.5), heights=(-0.3, 0.3), step_deg=10.0, rt60=(0.3, 0.45))
+# The demo bank: 4 small rooms of circular trajectories at two distances and two heights,
+# enough for rooms split by split (the demo-moving preset's builtin:demo-bank, and
+# `tsel bank build --demo`). About 2 s to build at 24 kHz.
+DEMO = dict(n_rooms=4, distances=(1.0, 2.0), heights=(-0.3, 0.3), step_deg=10.0)
 
 
 def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int = 24000,
@@ -28,9 +32,15 @@ def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int
                   rt60=(0.3, 0.8), dims_min=(5.0, 4.5, 2.7), dims_max=(9.0, 7.0, 3.5),
                   side: float = 0.11, method: str | None = None, rir_seconds: float | None = None,
                   progress=None) -> MemoryBank:
-    """A simulated bank in memory (see the module docstring); write it with ``write_bank``."""
-    from ..acoustics import simulate_rirs
+    """A simulated bank in memory (see the module docstring); write it with ``write_bank``.
 
+    format: array format. n_rooms: rooms to simulate. seed: room draws (room i uses
+    ``(seed, i)``). fs: Hz. distances: ring radii around the array (m). heights: ring
+    heights relative to the array (m). step_deg: azimuth step along each ring. rt60:
+    (lo, hi) seconds, drawn per room. dims_min, dims_max: room size ranges (m). side:
+    mic4 square side (m). method: RIR simulator (default hybrid). rir_seconds: cut RIRs
+    to this length (default: full decay). progress: called with each room's name.
+    """
     fmt = check_format(format)
     method = method or "hybrid"  # the toolkit's own simulator (acoustics/shoebox.py)
     if fmt == "foa" and method == "pyroomacoustics":
@@ -103,9 +113,8 @@ def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int
 
 
 def build_bank(out, format: str = "mic4", n_rooms: int = 2, seed: int = 0, **kwargs):
-    """Simulate a bank and write it to ``out`` (native format). Returns the path."""
-    from .native import write_bank
-
+    """Simulate a bank (:func:`simulate_bank`'s options) and write it to ``out`` (native
+    format). Returns the path."""
     bank = simulate_bank(format=format, n_rooms=n_rooms, seed=seed, **kwargs)
     prov = {"builder": "tsel bank build", "seed": int(seed), "n_rooms": int(n_rooms),
             **{k: (list(v) if isinstance(v, tuple) else v) for k, v in kwargs.items() if k != "progress"}}

@@ -21,7 +21,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from . import Bank, BankError, Trajectory, check_format
+from ..errors import BankError
+from ..h5str import as_strs
+from .base import Bank, Trajectory, check_format
 from ._h5 import H5Pool, read_rows
 
 VERSION = 1
@@ -65,8 +67,8 @@ class NativeBank(Bank):
                         raise BankError(f"{self.path}: room {r} lacks {name}; the bank is incomplete")
                 pos = g["positions"][()]
                 off = g["traj_offsets"][()]
-                ids = [s.decode() if isinstance(s, bytes) else str(s) for s in g["traj_ids"][()]]
-                kinds = [s.decode() if isinstance(s, bytes) else str(s) for s in g["traj_kinds"][()]]
+                ids = as_strs(g["traj_ids"][()])
+                kinds = as_strs(g["traj_kinds"][()])
                 closed = g["traj_closed"][()] if "traj_closed" in g else np.zeros(len(ids), bool)
                 trajs = [Trajectory(r, ids[t], kinds[t], pos[off[t] : off[t + 1]], bool(closed[t])) for t in range(len(ids))]
                 self._meta[r] = {

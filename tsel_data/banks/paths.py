@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import sph_to_cart
+from ..errors import BankError
+from ..geometry import interpolate_positions, sph_to_cart
 
 
 def angular_steps(positions) -> np.ndarray:
@@ -137,8 +138,6 @@ def sample_bank_point(bank, room: str, rng: np.random.Generator):
     trajs = bank.trajectories(room)
     sizes = np.array([len(t) for t in trajs], dtype=np.int64)
     if sizes.sum() == 0:
-        from . import BankError
-
         raise BankError(f"{bank.source}: room {room!r} holds no RIRs")
     k = int(rng.integers(sizes.sum()))
     i = int(np.searchsorted(np.cumsum(sizes), k, "right"))
@@ -151,6 +150,4 @@ def bank_path_positions(trajectory, indices, times, t) -> np.ndarray:
     Interpolates the knot positions with the renderer's weights (linear in time,
     azimuth unwrapped), so labels follow exactly what ``render_moving`` rendered.
     """
-    from ..timevarying import interpolate_positions
-
     return interpolate_positions(times, np.asarray(trajectory.positions)[np.asarray(indices)], t)

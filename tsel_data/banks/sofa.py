@@ -33,7 +33,9 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import CHANNEL_NAMES, cart_to_sph, sph_to_cart
-from . import Bank, BankError, Trajectory, _attr_str, check_format
+from ..errors import BankError
+from ..h5str import as_str
+from .base import Bank, Trajectory, check_format
 from ._h5 import H5Pool, read_rows
 from .paths import angular_steps
 from .tau import TAU_ROOM_NUMBERS
@@ -98,9 +100,9 @@ class SofaBank(Bank):
             f = self._h5.get(path)
         except OSError:
             raise BankError(f"{path}: not a SOFA file (SOFA files are HDF5/netCDF-4)") from None
-        if _attr_str(f.attrs.get("Conventions")) != "SOFA" or "Data.IR" not in f:
+        if as_str(f.attrs.get("Conventions")) != "SOFA" or "Data.IR" not in f:
             raise BankError(f"{path}: not a SOFA file with impulse responses (no Conventions=SOFA / Data.IR)")
-        conv = _attr_str(f.attrs.get("SOFAConventions"))
+        conv = as_str(f.attrs.get("SOFAConventions"))
         ir = f["Data.IR"]
         if ir.ndim != 3:
             raise BankError(f"{path}: Data.IR has shape {ir.shape}; expected [M, R, N] ({conv or 'unknown conventions'})")
@@ -113,7 +115,7 @@ class SofaBank(Bank):
         src = _positions(f["SourcePosition"], M, path)
         lis = _positions(f["ListenerPosition"], M, path) if "ListenerPosition" in f else np.zeros((M, 3))
         if listener_relative is None:
-            tag = " ".join(_attr_str(f.attrs.get(k)) for k in ("Organization", "DatabaseName", "Comment")).lower()
+            tag = " ".join(as_str(f.attrs.get(k)) for k in ("Organization", "DatabaseName", "Comment")).lower()
             listener_relative = not any(s in tag for s in _SPATIALSCAPER)
         rel = src - lis if listener_relative else src
         if "ListenerView" in f:
@@ -121,8 +123,8 @@ class SofaBank(Bank):
             up = _positions(f["ListenerUp"], M, path, direction=True) if "ListenerUp" in f else np.tile([0.0, 0.0, 1.0], (M, 1))
             rel = np.einsum("mij,mi->mj", _frames(view, up, path), rel)
         az, el, dist = cart_to_sph(rel)
-        room = _attr_str(f.attrs.get("RoomShortName")) or _SUFFIX.sub("", path.stem)
-        listener = _attr_str(f.attrs.get("ListenerShortName")).lower()
+        room = as_str(f.attrs.get("RoomShortName")) or _SUFFIX.sub("", path.stem)
+        listener = as_str(f.attrs.get("ListenerShortName")).lower()
         m = _SUFFIX.search(path.stem)
         fmt = listener if listener in ("foa", "mic", "tetra", "mic4") else (m.group(1).lower() if m else None)
         return {
@@ -170,9 +172,9 @@ def _positions(ds, M: int, path, direction: bool = False) -> np.ndarray:
         v = v.T
     if v.shape[0] not in (1, M) or v.shape[1] != 3:
         raise BankError(f"{path}: {ds.name.lstrip('/')} has shape {ds.shape}; expected [M or 1, 3]")
-    kind = _attr_str(ds.attrs.get("Type")).lower() or "cartesian"
+    kind = as_str(ds.attrs.get("Type")).lower() or "cartesian"
     if kind.startswith("spherical"):
-        units = _attr_str(ds.attrs.get("Units")).lower()
+        units = as_str(ds.attrs.get("Units")).lower()
         ang = v[:, :2] if "rad" not in units.split(",")[0] else np.degrees(v[:, :2])
         v = sph_to_cart(ang[:, 0], ang[:, 1], 1.0 if direction else v[:, 2])
     elif not kind.startswith("cartesian"):

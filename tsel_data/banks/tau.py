@@ -24,7 +24,7 @@ Conventions: ``doa_xyz`` is in the DCASE array frame (x front, y left, z up; the
 generator turns it into azimuth with ``atan2(y, x)`` and elevation with
 ``atan2(z, hypot(x, y))``), which is this toolkit's frame, so positions are used as
 they are. FOA is ACN/SN3D (W, Y, Z, X) and MIC is the Eigenmike tetrahedral subset,
-both as in DESIGN.md.
+both as in docs/format.md.
 
 Distances are not in ``doa_xyz``. Circular rooms: ``distances`` is [1 × nGroups], the
 horizontal radius of each group's circle around the vertical axis through the array,
@@ -47,8 +47,10 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import CHANNEL_NAMES, cart_to_sph
-from . import Bank, BankError, Trajectory, check_format
+from ..errors import BankError
+from .base import Bank, Trajectory, check_format
 from ._h5 import H5Pool, read_rows
+from .paths import angular_steps
 
 TAU_ROOM_NUMBERS = {
     "bomb_shelter": 1, "gym": 2, "pb132": 3, "pc226": 4, "sa203": 5,
@@ -67,7 +69,7 @@ class TauBank(Bank):
     kind = "tau"
 
     def __init__(self, root, format: str = "foa"):
-        import scipy.io
+        import scipy.io  # slow to import (~0.2 s); only TAU banks need it
 
         self.root = Path(root)
         self.source = str(self.root)
@@ -314,8 +316,6 @@ def _is_closed(pos: np.ndarray) -> bool:
     """A ring whose last-to-first step is no longer than twice the median step."""
     if len(pos) < 8:
         return False
-    from .paths import angular_steps
-
     steps = angular_steps(pos)
     med = float(np.median(steps[:-1]))
     span = float(np.sum(steps[:-1]))

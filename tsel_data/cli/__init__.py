@@ -1,6 +1,9 @@
 """The ``tsel`` command: a thin click layer over the library.
 
-User mistakes (TselError) print one line and exit with 2, never a traceback.
+User mistakes (TselError) print one line and exit with 2, never a traceback. Each
+command imports its library module when it runs, so ``tsel --help`` and every other
+command start without loading what they do not use (scipy.signal and pyroomacoustics
+take seconds to import).
 """
 from __future__ import annotations
 

@@ -6,6 +6,7 @@ import json
 import click
 
 from ..banks import BankError, open_bank
+from ..choices import ArrayFormat, RirMethod, values
 
 
 def _floats(text: str, what: str) -> tuple:
@@ -69,16 +70,7 @@ def import_sofa(files, out, fmt, rooms, grouping):
 def info(path, fmt, show_traj, as_json):
     """Summarise a bank: rooms, format, RIR count, trajectories, azimuth/elevation coverage."""
     with open_bank(path, format=fmt) as b:
-        s = b.summary()
-        if show_traj:
-            for r in s["rooms"]:
-                r["trajectory_list"] = [
-                    {"id": str(t.id), "kind": t.kind, "closed": t.closed, "rirs": len(t),
-                     "azimuth": [round(float(t.positions[0, 0]), 1), round(float(t.positions[-1, 0]), 1)],
-                     "elevation_mean": round(float(t.positions[:, 1].mean()), 1),
-                     "distance_mean": round(float(t.positions[:, 2].mean()), 2)}
-                    for t in b.trajectories(r["room"])
-                ]
+        s = b.summary(trajectories=show_traj)
     if as_json:
         click.echo(json.dumps(s, indent=1))
         return
@@ -97,7 +89,7 @@ def info(path, fmt, show_traj, as_json):
 
 @bank.command("build")
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="Bank file to write (.h5).")
-@click.option("--format", "fmt", type=click.Choice(["mic4", "foa", "tetra"]), default="mic4", show_default=True)
+@click.option("--format", "fmt", type=click.Choice(values(ArrayFormat)), default="mic4", show_default=True)
 @click.option("--rooms", "n_rooms", type=int, default=2, show_default=True, help="Number of simulated rooms.")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--fs", type=int, default=24000, show_default=True)
@@ -106,9 +98,10 @@ def info(path, fmt, show_traj, as_json):
 @click.option("--step", "step_deg", type=float, default=5.0, show_default=True, help="Azimuth step along each ring (deg).")
 @click.option("--rt60", default="0.3,0.8", show_default=True, help="RT60 range (s).")
 @click.option("--side", type=float, default=0.11, show_default=True, help="mic4 square side (m).")
-@click.option("--method", type=click.Choice(["hybrid", "ism", "pyroomacoustics"]), default=None, help="RIR simulator (default hybrid).")
+@click.option("--method", type=click.Choice(values(RirMethod)), default=None, help="RIR simulator (default hybrid).")
 @click.option("--rir-seconds", type=float, default=None, help="Cut RIRs to this length (default: full decay).")
-@click.option("--demo", is_flag=True, help="A small, fast bank (1 room, 2 rings x 2 heights, 10 deg steps).")
+@click.option("--demo", is_flag=True, help="The demo bank (4 rooms, 2 rings x 2 heights, 10 deg steps): the "
+              "demo-moving preset's builtin:demo-bank.")
 def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side, method, rir_seconds, demo):
     """Simulate a bank in the TAU-SRIR DB's shape: circular trajectories around the array."""
     from ..banks.build import DEMO, build_bank

@@ -6,14 +6,14 @@ import json
 import click
 
 from ..errors import TselError
-from .dataset import _config_options, _load, _workers
+from .options import config_options, load, worker_count
 
 SHOW = 20  # problems printed per kind; the rest are counted (--json lists them all)
 
 
 @click.command("check")
 @click.argument("dataset_dir", required=False, type=click.Path(file_okay=False))
-@_config_options
+@config_options
 @click.option("--out", "out_dir", type=click.Path(file_okay=False),
               help="With a config: the output folder a run would use (checked for space, writability, an old plan).")
 @click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
@@ -27,15 +27,16 @@ def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, **confi
     Exits 0 when nothing stops a run (warnings, e.g. skipped bad clips, are printed),
     2 when something does; every problem is one line naming the file and row.
     """
-    from ..check import check_config, check_dataset
+    from ..preflight import check_config
+    from ..store.verify import check_dataset
 
     if dataset_dir and (config_opts.get("preset") or config_opts.get("config_path")):
         raise TselError("give either a dataset folder or --preset/--config, not both")
     if dataset_dir:
-        rep = check_dataset(dataset_dir, workers=_workers(workers), audio=not no_audio)
+        rep = check_dataset(dataset_dir, workers=worker_count(workers), audio=not no_audio)
     else:
-        cfg = _load(**config_opts, validate=False)  # as `tsel generate`, but every problem is collected
-        rep = check_config(cfg, out_dir=out_dir, workers=_workers(workers), plan=not no_plan)
+        cfg = load(**config_opts, validate=False)  # as `tsel generate`, but every problem is collected
+        rep = check_config(cfg, out_dir=out_dir, workers=worker_count(workers), plan=not no_plan)
     if as_json:
         click.echo(json.dumps(rep.to_dict(), indent=1, ensure_ascii=False))
     else:

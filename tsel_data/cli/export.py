@@ -1,6 +1,8 @@
 """``tsel export dcase DIR --out DIR2``: the dataset in other tools' formats."""
 import click
 
+from ..choices import WavSubtype, values
+
 
 @click.group("export")
 def export_cmd():
@@ -11,7 +13,7 @@ def export_cmd():
 @click.argument("dataset_dir", type=click.Path(file_okay=False))
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--split", "splits", multiple=True, help="Only this split (repeatable; default: all).")
-@click.option("--subtype", type=click.Choice(["PCM_16", "PCM_24", "FLOAT"]), default="PCM_16", show_default=True,
+@click.option("--subtype", type=click.Choice(values(WavSubtype)), default="PCM_16", show_default=True,
               help="WAV sample format (the DCASE baselines expect 16-bit).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def dcase_cmd(dataset_dir, out_dir, splits, subtype, quiet):

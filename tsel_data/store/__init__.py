@@ -1,4 +1,16 @@
-"""Shard files: HDF5 for trainers, JSON for people and other tools (docs/format.md)."""
-from .writer import FORMAT_VERSION, RenderedScene, write_shard, shard_names
+"""The dataset format, in one package: it writes, reads and verifies what docs/format.md
+promises, and nobody else spells a path or a record key.
 
-__all__ = ["FORMAT_VERSION", "RenderedScene", "write_shard", "shard_names"]
+Import order: ``layout`` (path names), ``records`` (the per-scene record), ``dataset``
+(dataset.json, conventions, shard attributes), ``plans`` (plan files, shard tasks),
+then ``writer``, ``reader`` and ``verify`` (``tsel check DIR``).
+"""
+from .dataset import CONVENTIONS, FORMAT_VERSION, DatasetDoc, ShardEntry, load_dataset_doc, shard_attrs
+from .layout import Layout, shard_names
+from .reader import Scene, SceneDataset, list_splits, open_dataset
+from .records import ArrayRecord, LevelsRecord, RoomRecord, SceneRecord, SourceRecord
+from .writer import RenderedScene, write_shard
+
+__all__ = ["CONVENTIONS", "FORMAT_VERSION", "ArrayRecord", "DatasetDoc", "Layout", "LevelsRecord", "RenderedScene",
+           "RoomRecord", "Scene", "SceneDataset", "SceneRecord", "ShardEntry", "SourceRecord", "list_splits",
+           "load_dataset_doc", "open_dataset", "shard_attrs", "shard_names", "write_shard"]

@@ -11,17 +11,17 @@ import errno
 import glob
 import hashlib
 import json
-import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import h5py
 import numpy as np
 
 from ..errors import DatasetError
-
-FORMAT_VERSION = 1
-LABEL_KEYS = ("azimuth", "elevation", "distance")
+from ..jsonable import jsonable
+from .dataset import FORMAT_VERSION, ShardEntry
+from .layout import shard_names
+from .records import LABEL_KEYS, SceneRecord
 
 
 @dataclass
@@ -41,18 +41,13 @@ class RenderedScene:
     distance: np.ndarray
     active: np.ndarray
     mic_positions: np.ndarray
-    record: dict = field(default_factory=dict)
-
-
-def shard_names(split: str, shard: int) -> tuple[str, str]:
-    """Relative paths of a shard's HDF5 and JSON files."""
-    stem = f"{split}/shard-{shard:05d}"
-    return f"{stem}.h5", f"{stem}.json"
+    record: SceneRecord | None = None
 
 
 def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene], attrs: dict,
-                checksums: bool = True) -> dict:
-    """Write one shard atomically; returns its entry for ``dataset.json`` ({} without ``checksums``)."""
+                checksums: bool = True) -> ShardEntry | None:
+    """Write one shard atomically; returns its entry for ``dataset.json`` (None without
+    ``checksums``). attrs: :func:`~tsel_data.store.dataset.shard_attrs`."""
     h5_rel, json_rel = shard_names(split, shard)
     h5_path, json_path = os.path.join(out_dir, h5_rel), os.path.join(out_dir, json_rel)
     n_src = max(s.azimuth.shape[0] for s in scenes)
@@ -64,20 +59,39 @@ def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene
         os.makedirs(os.path.dirname(h5_path), exist_ok=True)
         remove_stale_tmp(json_path)
         remove_stale_tmp(h5_path)
-        atomic_write(json_path, (json.dumps(_json_safe(doc), ensure_ascii=False, indent=1) + "\n").encode("utf-8"))
+        atomic_write(json_path, (json.dumps(jsonable(doc), ensure_ascii=False, indent=1) + "\n").encode("utf-8"))
         what = h5_rel
         _atomic_write_h5(h5_path, scenes, n_src, {"split": split, "shard": shard, **attrs})
     except OSError as e:
         raise write_error(what, e, out_dir) from None
-    return shard_entry(out_dir, split, shard, len(scenes)) if checksums else {}
+    return shard_entry(out_dir, split, shard, len(scenes)) if checksums else None
 
 
-def shard_entry(out_dir: str, split: str, shard: int, n_scenes: int) -> dict:
+def shard_entry(out_dir: str, split: str, shard: int, n_scenes: int) -> ShardEntry:
     """A shard's entry in ``dataset.json``: its files and their sha256."""
     h5_rel, json_rel = shard_names(split, shard)
-    return {"file": h5_rel, "json": json_rel, "scenes": n_scenes,
-            "sha256": sha256_file(os.path.join(out_dir, h5_rel)),
-            "json_sha256": sha256_file(os.path.join(out_dir, json_rel))}
+    return ShardEntry(h5_rel, json_rel, n_scenes, sha256_file(os.path.join(out_dir, h5_rel)),
+                      sha256_file(os.path.join(out_dir, json_rel)))
+
+
+def write_text(path: str, text: str) -> None:
+    """Write a text file atomically (:func:`atomic_write`), removing temporary files of
+    killed writers first; a failed write is one DatasetError line naming the file."""
+    remove_stale_tmp(path)
+    try:
+        atomic_write(path, text.encode("utf-8"))
+    except OSError as e:
+        raise write_error(os.path.basename(path), e, os.path.dirname(path)) from None
+
+
+def write_json(path: str, doc) -> None:
+    """A JSON document (indent 1, UTF-8), atomically."""
+    write_text(path, json.dumps(jsonable(doc), ensure_ascii=False, indent=1) + "\n")
+
+
+def write_lines(path: str, lines) -> None:
+    """One line per item (``lines`` hold no newline), atomically."""
+    write_text(path, "".join(line + "\n" for line in lines))
 
 
 def atomic_write(path: str, data: bytes) -> None:
@@ -228,21 +242,6 @@ def _attr(v):
             return np.array(v, dtype=h5py.string_dtype("utf-8"))
         return np.asarray(v)
     return v
-
-
-def _json_safe(x):
-    """NaN/inf -> null, numpy -> Python (JSON has no NaN)."""
-    if isinstance(x, dict):
-        return {k: _json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json_safe(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _json_safe(x.tolist())
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
 
 
 def sha256_file(path: str) -> str:

@@ -1,0 +1,15 @@
+"""What every RIR method returns."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class RirSet:
+    """rirs: float32 [S, C, L] (point, channel, sample). rt60_measured: T30 (s) of the
+    omni/W response of the first point, or None when it was not measured."""
+
+    rirs: np.ndarray
+    rt60_measured: float | None = None

@@ -1,0 +1,105 @@
+"""Every set of allowed values, declared once.
+
+Config validation, recipe validation, the CLI's ``click.Choice`` lists and the docs
+all take their choices from these enumerations. Members are strings (``StrEnum``), so
+they compare equal to, hash like and serialise as their plain values: a recipe or
+record that holds ``Role.TARGET`` writes ``"target"``.
+"""
+from __future__ import annotations
+
+from enum import StrEnum
+
+
+class ArrayFormat(StrEnum):
+    """Microphone array formats (docs/format.md)."""
+
+    MIC4 = "mic4"
+    FOA = "foa"
+    TETRA = "tetra"
+
+
+class RirMethod(StrEnum):
+    """Shoebox RIR simulators (docs/acoustics.md). Bank scenes record ``"bank"`` instead."""
+
+    HYBRID = "hybrid"
+    ISM = "ism"
+    PYROOMACOUSTICS = "pyroomacoustics"
+
+
+class Scenario(StrEnum):
+    """The paper's two scene types: every source directional, or the first interferer additive."""
+
+    TWO_DIRECTIONAL = "two-directional"
+    DIRECTIONAL_ADDITIVE = "directional+additive"
+
+
+class Role(StrEnum):
+    TARGET = "target"
+    INTERFERER = "interferer"
+
+
+class Spatial(StrEnum):
+    """How a source is rendered: through the room, or added to every channel unspatialised."""
+
+    DIRECTIONAL = "directional"
+    ADDITIVE = "additive"
+
+
+class Motion(StrEnum):
+    """``scene.motion``: every directional source static, moving, or each moving with a probability."""
+
+    STATIC = "static"
+    MOVING = "moving"
+    MIXED = "mixed"
+
+
+class PathKind(StrEnum):
+    """How a simulated moving source moves: around the array, or on a straight pass."""
+
+    ARC = "arc"
+    LINE = "line"
+
+
+class CorpusFormat(StrEnum):
+    """Manifest formats (tsel_data/manifests); ``auto`` detects them."""
+
+    AUDIOCAPS = "audiocaps"
+    CLOTHO = "clotho"
+    WAVCAPS = "wavcaps"
+    PLAIN = "plain"
+    AUTO = "auto"
+
+
+class CheckLevel(StrEnum):
+    """``corpus.check``: how much of each clip is verified before planning."""
+
+    FULL = "full"
+    HEADER = "header"
+    EXISTS = "exists"
+    NONE = "none"
+
+
+class BadClipPolicy(StrEnum):
+    SKIP = "skip"
+    FAIL = "fail"
+
+
+class Executor(StrEnum):
+    """Where shards render (executors.py)."""
+
+    LOCAL = "local"
+    DASK = "dask"
+    DASK_LOCAL = "dask-local"
+
+
+class WavSubtype(StrEnum):
+    """WAV sample formats of ``tsel export``."""
+
+    PCM_16 = "PCM_16"
+    PCM_24 = "PCM_24"
+    FLOAT = "FLOAT"
+
+
+def values(choices: type[StrEnum]) -> tuple[str, ...]:
+    """The plain string values of an enumeration, in declaration order."""
+    return tuple(m.value for m in choices)

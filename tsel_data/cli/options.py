@@ -1,0 +1,56 @@
+"""Options several commands share, and turning them into library arguments."""
+from __future__ import annotations
+
+import os
+
+import click
+
+from ..choices import Executor, values
+from ..errors import TselError
+
+
+def config_options(f):
+    """--preset, --config, --corpus-dir, --split, --seed, --bank, --set."""
+    opts = [
+        click.option("--preset", help="A built-in preset (see `tsel presets`)."),
+        click.option("--config", "config_path", type=click.Path(dir_okay=False), help="A TOML config file."),
+        click.option("--corpus-dir", type=click.Path(file_okay=False), help="Folder with the manifests and audio."),
+        click.option("--split", "splits", multiple=True, metavar="NAME=COUNT", help="Scenes in a split (repeatable)."),
+        click.option("--seed", type=int, help="Dataset seed."),
+        click.option("--bank", type=click.Path(), help="RIR bank: a TAU-SRIR DB folder, SOFA file(s) or a tsel bank."),
+        click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+                     help="Override a config key, e.g. --set room.rt60='[\"uniform\", 0.3, 0.6]'."),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return f
+
+
+def load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validate=True):
+    """The Config the config options describe (TselError for a malformed option)."""
+    from ..config import load_config
+
+    if not preset and not config_path:
+        raise TselError("give --preset NAME or --config FILE.toml (see `tsel presets`)")
+    counts = {}
+    for s in splits:
+        name, _, count = s.partition("=")
+        if not name or not count.isdigit():
+            raise TselError(f"--split {s!r}: expected NAME=COUNT, e.g. --split train=100")
+        counts[name] = int(count)
+    return load_config(preset=preset, path=config_path, overrides=list(overrides), corpus_dir=corpus_dir,
+                       seed=seed, splits=counts, bank=bank, validate=validate)
+
+
+def worker_count(n: int) -> int:
+    """--workers: 0 means one per core."""
+    return n if n else (os.cpu_count() or 1)
+
+
+def executor_options(f):
+    """--executor, --scheduler."""
+    f = click.option("--scheduler", metavar="tcp://HOST:PORT", help="Dask scheduler address (--executor dask).")(f)
+    f = click.option("--executor", type=click.Choice(values(Executor)), default="local",
+                     show_default=True, help="Where shards render: a process pool, a Dask cluster, or a local "
+                     "Dask cluster of --workers processes.")(f)
+    return f

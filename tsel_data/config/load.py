@@ -1,0 +1,181 @@
+"""Loading a config: preset, file, ``--set`` overrides and the CLI's shortcuts, merged in
+that order into a typed, validated :class:`~tsel_data.config.schema.Config`.
+
+Unknown keys are errors that name the closest known key. Paths declared ``path=True``
+in the schema (``corpus.dir``, ``room.bank``) resolve against the config file's folder.
+"""
+from __future__ import annotations
+
+import difflib
+import os
+import tomllib
+from dataclasses import fields
+from importlib import resources
+from typing import Any
+
+from ..distributions import Dist
+from ..errors import ConfigError
+from .rules import check_raw_config, validate_config
+from .schema import SECTIONS, TOP_FIELDS, TOP_KEYS, Config, SplitConfig
+
+BUILTIN_PREFIX = "builtin:"  # corpus.dir / room.bank values the run builds itself
+
+
+def preset_names() -> list[str]:
+    return sorted(p.name[:-5] for p in resources.files("tsel_data.presets").iterdir() if p.name.endswith(".toml"))
+
+
+def preset_text(name: str) -> str:
+    """The TOML text of a built-in preset (ConfigError naming the presets if unknown)."""
+    if name not in preset_names():
+        raise ConfigError(f"unknown preset {name!r}; available: {', '.join(preset_names())}")
+    return (resources.files("tsel_data.presets") / f"{name}.toml").read_text(encoding="utf-8")
+
+
+def load_config(preset: str | None = None, path: str | None = None, overrides=(), *,
+                corpus_dir: str | None = None, bank: str | None = None, seed: int | None = None,
+                splits: dict | None = None, validate: bool = True) -> Config:
+    """Build a Config from a preset and/or a TOML file, then ``--set`` overrides, then the
+    CLI's shortcuts.
+
+    preset: a built-in preset name. path: a TOML file. overrides: ``section.key=value``
+    strings (value in TOML syntax, or a bare word). corpus_dir, bank, seed: set
+    ``corpus.dir``, ``room.bank``, ``seed``. splits: ``{name: count}``. validate:
+    raise the first problem of the parsed config (``tsel check`` passes False and then
+    collects every problem itself).
+    """
+    raw: dict = {}
+    if preset:
+        raw = _merge(raw, _parse_toml(preset_text(preset), f"preset {preset}"))
+    if path:
+        raw = _merge(raw, _read_user_file(path))
+    for ov in overrides:
+        raw = _merge(raw, _parse_override(ov))
+    if corpus_dir:
+        raw.setdefault("corpus", {})["dir"] = corpus_dir
+    if bank:
+        raw.setdefault("room", {})["bank"] = os.path.abspath(os.path.expanduser(bank))
+    if seed is not None:
+        raw["seed"] = seed
+    for name, count in (splits or {}).items():
+        raw.setdefault("splits", {}).setdefault(name, {})["count"] = count
+    return parse_config(raw, where=path or (f"preset {preset}" if preset else "config"), validate=validate)
+
+
+def parse_config(raw: dict, where: str = "config", validate: bool = True) -> Config:
+    """Raw (TOML-shaped) data -> Config; ``validate`` raises its first problem."""
+    check_raw_config(raw, where)
+    _check_keys(raw, TOP_KEYS, where, "")
+    kw: dict[str, Any] = {}
+    top = {f.name: f for f in fields(Config)}
+    for key in TOP_FIELDS:
+        if key in raw:
+            kw[key] = _parse_value(raw[key], top[key], Config(), where, key)
+    for sec, cls in SECTIONS.items():
+        kw[sec] = _parse_section(raw.get(sec, {}), cls, where, sec)
+    splits = {}
+    for name, sraw in (raw.get("splits") or {}).items():
+        if not isinstance(sraw, dict):
+            raise ConfigError(f"{where}: splits.{name} must be a table with manifest and count")
+        splits[name] = _parse_section(sraw, SplitConfig, where, f"splits.{name}")
+    kw["splits"] = splits
+    cfg = Config(**kw)
+    if validate:
+        validate_config(cfg, where)
+    return cfg
+
+
+# --- helpers -----------------------------------------------------------------------------
+
+
+def _read_user_file(path: str) -> dict:
+    if not os.path.isfile(path):
+        raise ConfigError(f"config file not found: {path}")
+    try:
+        with open(path, "rb") as f:
+            text = f.read().decode("utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: not UTF-8 text") from None
+    user = _parse_toml(text, path)
+    check_raw_config(user, path)
+    base_dir = os.path.dirname(os.path.abspath(path))
+    for sec, cls in SECTIONS.items():
+        table = user.get(sec, {})
+        for f in fields(cls):
+            if not f.metadata.get("path"):
+                continue
+            if not isinstance(table, dict) or not isinstance(table.get(f.name, ""), str):
+                raise ConfigError(f"{path}: [{sec}] must be a table and {sec}.{f.name} a string path")
+            value = table.get(f.name)
+            if value and not value.startswith(BUILTIN_PREFIX):
+                table[f.name] = os.path.join(base_dir, os.path.expanduser(value))
+    return user
+
+
+def _parse_toml(text: str, where: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{where}: not valid TOML: {e}") from None
+
+
+def _parse_override(ov: str) -> dict:
+    if "=" not in ov:
+        raise ConfigError(f"--set {ov!r}: expected section.key=value, e.g. --set room.rt60=0.6")
+    key, value = ov.split("=", 1)
+    try:
+        parsed = tomllib.loads(f"v = {value}")["v"]
+    except tomllib.TOMLDecodeError:
+        parsed = value  # a bare word: treat as a string
+    out: dict = {}
+    node = out
+    parts = key.strip().split(".")
+    for p in parts[:-1]:
+        node = node.setdefault(p, {})
+    node[parts[-1]] = parsed
+    return out
+
+
+def _merge(a: dict, b: dict) -> dict:
+    out = dict(a)
+    for k, v in b.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def _check_keys(raw: dict, known, where: str, prefix: str) -> None:
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{where}: {prefix.rstrip('.') or 'config'} must be a table")
+    for k in raw:
+        if k not in known:
+            close = difflib.get_close_matches(k, list(known), n=1, cutoff=0.5)
+            hint = f"; did you mean {prefix}{close[0]}?" if close else f"; known keys: {', '.join(known)}"
+            raise ConfigError(f"{where}: unknown config key {prefix}{k!r}{hint}")
+
+
+def _parse_section(raw: dict, cls, where: str, sec: str):
+    _check_keys(raw, [f.name for f in fields(cls)], where, f"{sec}.")
+    defaults = cls()
+    kw = {f.name: _parse_value(raw[f.name], f, defaults, where, f"{sec}.{f.name}") for f in fields(cls)
+          if f.name in raw}
+    return cls(**kw)
+
+
+def _parse_value(v, f, defaults, where: str, key: str):
+    """One raw value, typed like the field's default."""
+    if f.metadata.get("dist"):
+        return Dist.parse(v, f"{where}: {key}")
+    default = getattr(defaults, f.name)
+    if isinstance(default, tuple):
+        return tuple(v) if isinstance(v, list) else (v,)
+    if isinstance(default, (bool, str)):
+        if not isinstance(v, type(default)):
+            raise ConfigError(f"{where}: {key} must be a {type(default).__name__}, got {v!r}")
+        return v
+    if isinstance(default, (int, float)):
+        whole = not isinstance(default, int) or float(v).is_integer() if isinstance(v, (int, float)) else False
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not whole:
+            kind = "a whole number" if isinstance(default, int) else "a number"
+            raise ConfigError(f"{where}: {key} must be {kind}, got {v!r}")
+        return type(default)(v)
+    return v

@@ -1,0 +1,275 @@
+"""Every rule a config must satisfy, next to the schema it judges.
+
+- :func:`check_raw_config`: the *shape* of raw data (TOML tables, ``--set`` values,
+  ``dataset.json``'s config) before typed parsing;
+- :func:`field_problems`: each field against its declared choices and bounds (schema.py);
+- :func:`cross_field_problems`: rules that need more than one field;
+- :func:`geometry_problems`: layouts no scene drawn from the ranges could realise, in the
+  largest and in the smallest room the ranges allow;
+- :func:`rooms_without_bank`: bank rooms named without a bank.
+
+The ``*_problems`` functions collect (``tsel check`` shows every problem at once);
+:func:`validate_config` raises the first.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import fields
+
+from ..distributions import Dist
+from ..errors import ConfigError, GeometryError
+from ..geometry import array_radius
+from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
+
+MAX_NUMBER = 1e9  # larger config numbers are typos (seeds excepted)
+
+
+# --- raw structure -----------------------------------------------------------------------
+
+
+def check_raw_config(raw, where: str = "config") -> None:
+    """Reject raw config data whose *shape* the typed parser does not expect, with a
+    one-line ConfigError naming the key: a config or ``splits`` that is not a table, keys
+    with control characters (they would break the one-line messages), and numbers that
+    are not finite (TOML allows ``inf`` and ``nan``) or larger than MAX_NUMBER (the seed
+    excepted), which would overflow ratios such as duration / label_hop.
+    """
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{where}: a config must be a table of sections, got {type(raw).__name__}")
+    splits = raw.get("splits")
+    if splits is not None and not isinstance(splits, dict):
+        raise ConfigError(f"{where}: splits must be a table of [splits.NAME] with manifest and count, "
+                          f"got {splits!r}")
+    _finite(raw, where, "")
+
+
+def _finite(x, where: str, key: str) -> None:
+    if isinstance(x, dict):
+        for k, v in x.items():
+            if not isinstance(k, str) or any(ord(c) < 32 or ord(c) == 127 for c in k):
+                shown = f"{key}.{k!r}" if key else repr(k)
+                raise ConfigError(f"{where}: config key {shown} is not a plain name (control characters or not a "
+                                  f"string); keys are names such as room.rt60")
+            _finite(v, where, f"{key}.{k}" if key else str(k))
+    elif isinstance(x, (list, tuple)):
+        for v in x:
+            _finite(v, where, key)
+    elif isinstance(x, bool):
+        return
+    elif isinstance(x, (int, float)):
+        key = key.encode("unicode_escape").decode("ascii")  # odd keys stay on one line
+        try:
+            ok = math.isfinite(float(x))
+        except OverflowError:
+            ok = False
+        if not ok:
+            raise ConfigError(f"{where}: {key or 'config'} = {x!r} is not a finite number; write a number "
+                              f"within float range")
+        if key != "seed" and abs(x) > MAX_NUMBER:
+            # no physical quantity, count or rate here comes near; ratios of such numbers overflow
+            raise ConfigError(f"{where}: {key} = {x!r} is out of range (|x| > {MAX_NUMBER:g}); check the value")
+
+
+# --- single fields, from the schema's declarations -----------------------------------------------
+
+
+def field_problems(cfg: Config, where: str = "config") -> list[ConfigError]:
+    """Each field against its declared choices and bounds, in schema order."""
+    out: list[ConfigError] = []
+    for f in fields(Config):
+        if f.name in TOP_FIELDS:
+            out += _judge(getattr(cfg, f.name), f, f.name, where)
+    for sec in SECTIONS:
+        section = getattr(cfg, sec)
+        for f in fields(section):
+            out += _judge(getattr(section, f.name), f, f"{sec}.{f.name}", where)
+    for name, sp in cfg.splits.items():
+        for f in fields(SplitConfig):
+            out += _judge(getattr(sp, f.name), f, f"splits.{name}.{f.name}", where)
+    return out
+
+
+def _judge(value, f, key: str, where: str) -> list[ConfigError]:
+    m = f.metadata
+    choices = m.get("choices")
+    if isinstance(value, Dist):
+        return _judge_dist(value, m, key, where)
+    if choices and value not in choices:
+        return [ConfigError(f"{where}: {key} = {value!r} is not one of {', '.join(choices)}")]
+    if _bounded(m) and isinstance(value, (int, float)) and not _within(value, m):
+        return [ConfigError(f"{where}: {key} must be {_condition(m)}, got {value!r}")]
+    return []
+
+
+def _judge_dist(d: Dist, m: dict, key: str, where: str) -> list[ConfigError]:
+    choices = m.get("choices")
+    if choices:
+        if d.kind not in ("const", "choose") or not all(isinstance(o, str) and o in choices for o in d.options):
+            names = ", ".join(json.dumps(c) for c in choices)
+            return [ConfigError(f"{where}: {key} must be {names} or [\"choose\", [...]] of them, got "
+                                f"{json.dumps(d.to_json())}")]
+        return []
+    if not _bounded(m):
+        return []
+    b = d.bounds
+    if b is None:
+        return [ConfigError(f"{where}: {key} must be numbers ({_condition(m)}), got {json.dumps(d.to_json())}")]
+    if not (_within(b[0], m) and _within(b[1], m)):
+        return [ConfigError(f"{where}: {key} must be {_condition(m)}, got {json.dumps(d.to_json())}")]
+    return []
+
+
+def _bounded(m: dict) -> bool:
+    return any(m.get(k) is not None for k in ("ge", "gt", "le"))
+
+
+def _within(v: float, m: dict) -> bool:
+    return ((m.get("ge") is None or v >= m["ge"]) and (m.get("gt") is None or v > m["gt"])
+            and (m.get("le") is None or v <= m["le"]))
+
+
+def _condition(m: dict) -> str:
+    parts = [f"{op} {m[k]:g}" for k, op in (("ge", ">="), ("gt", ">"), ("le", "<=")) if m.get(k) is not None]
+    unit = f" {m['unit']}" if m.get("unit") else ""
+    why = f" ({m['why']})" if m.get("why") else ""
+    return " and ".join(parts) + unit + why
+
+
+# --- across fields ------------------------------------------------------------------------------
+
+
+def cross_field_problems(cfg: Config, where: str = "config") -> list[ConfigError]:
+    """Rules that need more than one field."""
+    out: list[ConfigError] = []
+    a = cfg.audio
+    if a.duration > 0 and a.label_hop > 0:
+        if a.label_hop > a.duration:
+            out.append(ConfigError(f"{where}: audio.label_hop {a.label_hop} s is longer than audio.duration "
+                                   f"{a.duration} s"))
+        elif abs(a.duration / a.label_hop - round(a.duration / a.label_hop)) > 1e-6:
+            out.append(ConfigError(f"{where}: audio.duration {a.duration} is not a whole number of label_hop "
+                                   f"{a.label_hop}"))
+    nb = cfg.scene.interferers.bounds
+    if nb is not None and cfg.scene.min_separation * (nb[1] + 1) > 360:
+        out.append(ConfigError(f"{where}: scene.min_separation {cfg.scene.min_separation}° is impossible with "
+                               f"{int(nb[1]) + 1} directional sources"))
+    if not cfg.room.bank and cfg.scene.format == "foa" and cfg.room.rir_method == "pyroomacoustics":
+        out.append(ConfigError(f"{where}: room.rir_method = \"pyroomacoustics\" renders omni capsules only; "
+                               f"use \"hybrid\" or \"ism\" for scene.format = \"foa\""))
+    return out
+
+
+def rooms_without_bank(cfg: Config) -> ConfigError | None:
+    """A split that makes scenes names bank rooms but ``room.bank`` is empty."""
+    roomed = [n for n, sp in cfg.splits.items() if sp.rooms and sp.count]
+    if roomed and not cfg.room.bank:
+        return ConfigError(f"splits.{roomed[0]}.rooms names RIR-bank rooms but room.bank is not set; pass --bank "
+                           f"PATH (a TAU-SRIR DB folder, SOFA files or a tsel bank) or remove the rooms")
+    return None
+
+
+# --- geometry -------------------------------------------------------------------------------------
+
+
+def geometry_problems(cfg: Config, where: str = "config") -> list[GeometryError]:
+    """Layouts no scene drawn from the config's ranges could realise (simulated rooms
+    only). First the *largest* room the ranges allow: it must hold the wall margins, the
+    heights and the minimum source distance; if it does, the *smallest* room: the array
+    (its radius plus ``array.wall_margin``) fits its floor, sources fit between their
+    wall margins, heights fit under its ceiling, and the minimum source distance is
+    reachable in it (diagonal of the floor area left by the margins, with the largest
+    height difference). Returns GeometryErrors naming the keys to change.
+    """
+    r, arr, src = cfg.room, cfg.array, cfg.sources
+    if r.bank:
+        return []
+    bounds = {k: getattr(r, k).bounds for k in ("length", "width", "height")}
+    if (any(b is None or b[0] <= 0 for b in bounds.values()) or arr.height.bounds is None
+            or src.height.bounds is None or src.distance.bounds is None):
+        return []  # field_problems reports non-numeric and non-positive ranges
+    out = _largest_room_problems(cfg, bounds, where)
+    return out or _smallest_room_problems(cfg, bounds, where)
+
+
+def _largest_room_problems(cfg: Config, bounds: dict, where: str) -> list[GeometryError]:
+    arr, src = cfg.array, cfg.sources
+    lmax, wmax, hmax = bounds["length"][1], bounds["width"][1], bounds["height"][1]
+    out = []
+    floor = min(lmax, wmax)
+    if floor < 2 * arr.wall_margin or floor < 2 * src.wall_margin:
+        out.append(GeometryError(
+            f"{where}: the largest room ({floor} m) is smaller than twice the wall margin (array "
+            f"{arr.wall_margin} m, sources {src.wall_margin} m); lower the margins or enlarge the room"))
+    if arr.height.bounds[0] >= hmax or src.height.bounds[0] >= hmax - src.wall_margin:
+        out.append(GeometryError(f"{where}: array or source heights do not fit under the tallest ceiling "
+                                 f"({hmax} m); lower array.height or sources.height, or raise room.height"))
+    dmin = src.distance.bounds[0]
+    reach = max(lmax, wmax) - arr.wall_margin - src.wall_margin
+    if dmin > reach:
+        out.append(GeometryError(f"{where}: sources.distance minimum {dmin} m cannot fit in the largest room "
+                                 f"(at most {reach:.2f} m from the array); lower it or enlarge the room"))
+    return out
+
+
+def _smallest_room_problems(cfg: Config, bounds: dict, where: str) -> list[GeometryError]:
+    arr, src = cfg.array, cfg.sources
+    lmin, wmin, hmin = bounds["length"][0], bounds["width"][0], bounds["height"][0]
+    out = []
+    floor = min(lmin, wmin)
+    side = arr.side.bounds[1] if cfg.scene.format == "mic4" and arr.side.bounds else 0.0
+    radius = array_radius(cfg.scene.format, side)
+    need = 2 * (arr.wall_margin + radius)
+    if floor < need:
+        key = "room.length" if lmin <= wmin else "room.width"
+        out.append(GeometryError(
+            f"{where}: {key} minimum {floor} m is smaller than the array plus its margins ({need:.2f} m = 2 x "
+            f"(array.wall_margin {arr.wall_margin} + array radius {radius:.3f})); raise the minimum to at least "
+            f"{need:.2f} m or lower array.wall_margin"))
+    if floor <= 2 * src.wall_margin:
+        out.append(GeometryError(
+            f"{where}: the smallest room ({floor} m) leaves no floor between the sources' wall margins "
+            f"(2 x sources.wall_margin = {2 * src.wall_margin} m); raise the room minimum or lower "
+            f"sources.wall_margin"))
+    if arr.height.bounds[0] >= hmin:
+        out.append(GeometryError(
+            f"{where}: array.height minimum {arr.height.bounds[0]} m does not fit under the lowest ceiling "
+            f"(room.height minimum {hmin} m); lower array.height or raise room.height"))
+    top = hmin - src.wall_margin
+    if src.height.bounds[0] > top:
+        out.append(GeometryError(
+            f"{where}: sources.height minimum {src.height.bounds[0]} m is above the highest source position in the "
+            f"lowest room ({hmin} m - sources.wall_margin {src.wall_margin} m = {top:.2f} m); lower sources.height "
+            f"or raise room.height"))
+    if not out:
+        reach_xy = math.hypot(max(lmin - arr.wall_margin - src.wall_margin, 0.0),
+                              max(wmin - arr.wall_margin - src.wall_margin, 0.0))
+        dz = max(abs(src.height.bounds[1] - arr.height.bounds[0]), abs(arr.height.bounds[1] - src.height.bounds[0]))
+        reach = math.hypot(reach_xy, min(dz, hmin))
+        dmin = src.distance.bounds[0]
+        if dmin > reach:
+            out.append(GeometryError(
+                f"{where}: sources.distance minimum {dmin} m cannot fit in the smallest room ({lmin} x {wmin} x "
+                f"{hmin} m; at most {reach:.2f} m from the array given the wall margins); lower sources.distance or "
+                f"raise the room minimum"))
+    return out
+
+
+# --- all of them ------------------------------------------------------------------------------------
+
+
+def config_problems(cfg: Config, where: str = "config", geometry: bool = True) -> list[ConfigError]:
+    """Every problem of a parsed config: fields, then across fields, then (if the fields
+    are sound) geometry."""
+    out = field_problems(cfg, where)
+    out += cross_field_problems(cfg, where)
+    if geometry and not out:
+        out += geometry_problems(cfg, where)
+    return out
+
+
+def validate_config(cfg: Config, where: str = "config", geometry: bool = True) -> None:
+    """Raise the first problem of :func:`config_problems`."""
+    problems = config_problems(cfg, where, geometry)
+    if problems:
+        raise problems[0]

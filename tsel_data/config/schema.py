@@ -1,0 +1,199 @@
+"""The config schema: every section and key, declared once.
+
+Each field carries its unit, allowed values, range and help in ``field(metadata=...)``
+(:func:`option`, :func:`dist`). Loading (load.py), the per-field checks (rules.py),
+``tsel presets NAME`` (toml.py) and the key tables of docs/config.md (doc.py) are
+derived from these declarations; checks across fields are written out in rules.py.
+A sampled parameter is a :class:`~tsel_data.distributions.Dist`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+from ..choices import (ArrayFormat, BadClipPolicy, CheckLevel, CorpusFormat, Motion, PathKind, RirMethod, Scenario,
+                       values)
+from ..distributions import Dist
+from ..jsonable import jsonable
+
+
+def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, le=None, why: str = "",
+           path: bool = False):
+    """A plain field: ``unit`` (shown in docs and messages), ``choices`` (an enumeration),
+    ``ge``/``gt``/``le`` (bounds), ``why`` (a reason shown when a bound fails), ``path``
+    (resolved against a config file's folder)."""
+    meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": le,
+            "why": why, "path": path}
+    if isinstance(default, (tuple, dict)):
+        return field(default_factory=lambda: type(default)(default), metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def dist(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, why: str = ""):
+    """A sampled field (a constant or a distribution); bounds apply to every value it can draw."""
+    meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": None,
+            "why": why, "path": False, "dist": True}
+    return field(default_factory=lambda: Dist.parse(default, "default"), metadata=meta)
+
+
+@dataclass(frozen=True)
+class CorpusConfig:
+    """Where the captioned clips come from."""
+
+    format: str = option("audiocaps", "manifest format (see manifests/README.md); `auto` detects it",
+                         choices=CorpusFormat)
+    dir: str = option("", "folder with the manifests (and audio); `--corpus-dir` sets it; `\"builtin:demo\"` "
+                          "synthesises the demo corpus into `OUT/demo-corpus`", path=True)
+    audio_dir: str = option("", "audio folder, relative to `dir`; default `dir/audio` if it exists, else `dir`")
+    audio_template: str = option("", "audio file name pattern; empty means the reader's default (`{youtube_id}.wav` "
+                                     "for AudioCaps; also `{audiocap_id}`, `{start_time}`), e.g. "
+                                     "`\"Y{youtube_id}.wav\"`")
+    check: str = option("full", "how much each clip is checked before planning: `full` (decode: catches NaN/Inf, "
+                                "and silence in the `audio.duration` seconds a scene uses), `header`, `exists`, "
+                                "`none` (trust the manifest; a silent source is then an error at render time)",
+                        choices=CheckLevel)
+    min_duration: float = option(1.0, "shorter clips are bad clips", unit="s")
+    max_channels: int = option(8, "a file with more channels is a bad clip (probably not a recording)")
+
+
+@dataclass(frozen=True)
+class SplitConfig:
+    """One split (any name; the presets use `train`, `val`, `test`). Clips are drawn only
+    from the split's own manifest, so a corpus' split is kept."""
+
+    manifest: str = option("", "manifest file, relative to `corpus.dir`")
+    count: int = option(0, "scenes to make (`--split NAME=COUNT` overrides)", ge=0)
+    rooms: tuple = option((), "RIR-bank rooms this split may use (bank datasets), by name or number. Empty: the "
+                              "rooms no other split names (every room when no split names any), so a split never "
+                              "draws another split's rooms; a room named by two splits is an error")
+
+
+@dataclass(frozen=True)
+class AudioConfig:
+    """Sample rate, length, label frames and levels of every scene."""
+
+    fs: int = option(24000, "sample rate of the scenes (clips are resampled, polyphase)", unit="Hz", ge=8000)
+    duration: float = option(10.0, "scene length; clips are zero-padded or cut to it", unit="s", gt=0)
+    label_hop: float = option(0.1, "label frame hop; `duration` must be a whole number of hops", unit="s", gt=0)
+    activity_threshold_db: float = option(-30.0, "a frame is active if its energy is within this of the clip's "
+                                                 "loudest frame", unit="dB")
+    target_level_dbfs: float = option(-25.0, "active-frame RMS of the target's image at the array", unit="dBFS")
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """What a scene holds: array format, sources, their separation, motion."""
+
+    format: str = option("mic4", "array format", choices=ArrayFormat)
+    scenario: Dist = dist(["choose", ["two-directional"]],
+                          "`two-directional`, or `directional+additive` (the first interferer added to every "
+                          "channel unspatialised), or a `choose` of both", choices=Scenario)
+    interferers: Dist = dist(1, "interferers per scene (a distribution is allowed); in `directional+additive` the "
+                                "first is additive", ge=1, why="a scene holds at least two sources")
+    tir_db: Dist = dist(["uniform", -5.0, 5.0], "target-to-interferer ratio at the array, per interferer", unit="dB")
+    min_separation: float = option(20.0, "minimum azimuth between directional sources", unit="deg")
+    separated_frames: float = option(0.8, "fraction of label frames on which `min_separation` must hold; static "
+                                          "sources hold it on every frame or none, a moving source may cross "
+                                          "another for the rest (at 40 °/s a 10 s walk goes all the way round)",
+                                     gt=0.0, le=1.0)
+    caption_similarity: float = option(0.5, "an interferer is rejected if any of its captions shares more than this "
+                                            "word overlap (Jaccard, function words ignored) with the query, so the "
+                                            "query picks out one source")
+    motion: str = option("static", "`static`, `moving` or `mixed`. In simulated rooms a moving source follows "
+                                   "`path`, with an RIR at least every 100 ms and every 4°; with a bank it walks a "
+                                   "bank trajectory, starting at a random point in a random direction",
+                         choices=Motion)
+    moving_fraction: float = option(0.5, "with `mixed`: probability that a directional source moves", ge=0.0, le=1.0)
+    speed: Dist = dist(["choose", [10.0, 20.0, 40.0]],
+                       "angular speed of moving sources as seen from the array, great-circle arc (the DCASE "
+                       "generator's set), for bank walks and simulated paths alike: a simulated arc at elevation e "
+                       "turns its azimuth at speed / cos e", unit="deg/s", ge=0.0)
+    path: Dist = dist("arc", "how simulated sources move: `arc` (around the array at constant distance and height) "
+                             "or `line` (a straight pass at constant height: closest to the array at a random time "
+                             "of the clip, at `sources.distance`, where it sweeps `speed`, so v = speed·distance; "
+                             "slower further away), or `[\"choose\", [\"arc\", \"line\"]]`. Bank walks follow the "
+                             "bank's own trajectories", choices=PathKind)
+
+
+@dataclass(frozen=True)
+class RoomConfig:
+    """Simulated shoebox rooms, or an RIR bank."""
+
+    length: Dist = dist(["uniform", 5.0, 15.0], "shoebox length (the paper's \"each side 5–15 m\")", unit="m",
+                        gt=0.0)
+    width: Dist = dist(["uniform", 5.0, 15.0], "shoebox width", unit="m", gt=0.0)
+    height: Dist = dist(["uniform", 5.0, 15.0], "shoebox height (`realistic-sim` uses 2.5–4 m)", unit="m", gt=0.0)
+    rt60: Dist = dist(["uniform", 0.5, 1.0], "requested reverberation time", unit="s", gt=0.0)
+    rir_method: str = option("hybrid", "RIR simulator (see acoustics.md; `pyroomacoustics` renders omni capsules "
+                                       "only, so not FOA)", choices=RirMethod)
+    bank: str = option("", "path of an RIR bank (a TAU-SRIR DB folder, SOFA files or a tsel bank; "
+                           "`\"builtin:demo-bank\"` builds a small simulated one into `OUT/demo-bank.h5`); when set, "
+                           "scenes use its RIRs instead of simulation (see banks.md)", path=True)
+
+
+@dataclass(frozen=True)
+class ArrayConfig:
+    """Where the array stands in a simulated room."""
+
+    side: Dist = dist(["uniform", 0.10, 0.13], "mic4 side length", unit="m", ge=0.0)
+    height: Dist = dist(["uniform", 1.0, 1.2], "array centre height above the floor", unit="m", ge=0.0)
+    yaw: Dist = dist(["uniform", -180.0, 180.0], "direction of the array's front in the room", unit="deg")
+    wall_margin: float = option(1.0, "minimum distance from the array centre to the side walls", unit="m")
+
+
+@dataclass(frozen=True)
+class SourcesConfig:
+    """Where directional sources are placed."""
+
+    distance: Dist = dist(["uniform", 1.0, 3.0], "distance from the array centre", unit="m", ge=0.0)
+    height: Dist = dist(["uniform", 0.5, 2.0], "source height above the floor", unit="m", ge=0.0)
+    wall_margin: float = option(0.5, "minimum distance from every wall, floor and ceiling", unit="m")
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    """How scenes are stored."""
+
+    shard_size: int = option(128, "scenes per shard (a 10 s 4-channel 24 kHz scene is 3.84 MB)", ge=1)
+
+
+@dataclass(frozen=True)
+class Config:
+    """A whole dataset job. ``to_dict()`` is the plain form stored in ``plan/config.json``
+    and ``dataset.json``."""
+
+    name: str = option("custom", "a label stored in `dataset.json`")
+    seed: int = option(0, "the dataset seed: every scene's draws come from (seed, split, index)", ge=0)
+    on_bad_clip: str = option("skip", "`skip`: leave bad clips out and list them in `bad_clips.jsonl`; `fail`: "
+                                      "stop before rendering", choices=BadClipPolicy)
+    corpus: CorpusConfig = field(default_factory=CorpusConfig)
+    splits: dict = field(default_factory=dict)  # name -> SplitConfig
+    audio: AudioConfig = field(default_factory=AudioConfig)
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    room: RoomConfig = field(default_factory=RoomConfig)
+    array: ArrayConfig = field(default_factory=ArrayConfig)
+    sources: SourcesConfig = field(default_factory=SourcesConfig)
+    output: OutputConfig = field(default_factory=OutputConfig)
+
+    def to_dict(self) -> dict:
+        return jsonable(self)
+
+    def rooms_by_split(self) -> dict:
+        """``splits.NAME.rooms`` of every split."""
+        return {name: tuple(sp.rooms) for name, sp in self.splits.items()}
+
+    def active_splits(self) -> tuple:
+        """The splits that make scenes (count > 0), in config order."""
+        return tuple(name for name, sp in self.splits.items() if sp.count)
+
+
+SECTIONS = {
+    "corpus": CorpusConfig, "audio": AudioConfig, "scene": SceneConfig, "room": RoomConfig,
+    "array": ArrayConfig, "sources": SourcesConfig, "output": OutputConfig,
+}
+TOP_KEYS = ("name", "seed", "on_bad_clip", "splits", *SECTIONS)
+TOP_FIELDS = ("name", "seed", "on_bad_clip")
+
+
+def field_specs(cls) -> list:
+    """The declared fields of a section class (or Config's top-level plain fields)."""
+    return [f for f in fields(cls) if f.metadata.get("doc")]

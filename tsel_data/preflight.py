@@ -1,0 +1,147 @@
+"""``tsel check CONFIG``: every check a dataset job can fail on, before any rendering.
+
+The config's fields and geometry (in the largest *and* the smallest room the ranges
+allow), the RIR bank (when ``room.bank`` is set), the output folder, every manifest,
+every clip (``corpus.check`` level, ``on_bad_clip`` policy), duplicate clip ids, and
+finally the whole plan sampled in memory (planning is cheap: ~0.2 ms per scene), so a
+scene that cannot be placed is found here and not after hours of rendering.
+
+Each check is the one the job itself runs (config rules, :func:`~tsel_data.catalog.scan_catalog`,
+:mod:`tsel_data.banks.scenes`, the planner), in its collecting form: the report lists
+every problem at once. Nothing is written, except a demo corpus or bank synthesised
+into a scratch folder.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+
+from .banks.scenes import bank_problems, resolve_bank
+from .catalog import BUILTIN_DEMO, resolve_corpus_dir, scan_catalog
+from .config import Config, config_problems, geometry_problems, rooms_without_bank
+from .errors import DatasetError, TselError
+from .geometry import CHANNEL_NAMES
+from .pipeline import planned_with
+from .plan import CatalogView, bank_request, plan_split_json
+from .report import CheckReport
+from .store.layout import Layout
+
+# Disk estimate per scene beyond the float32 audio: the HDF5 labels (3 float32 + 1 bool
+# per source and frame = 13 bytes) and about 2 kB of JSON record and HDF5 overhead.
+LABEL_BYTES_PER_SOURCE_FRAME = 13
+OVERHEAD_BYTES_PER_SCENE = 2000
+
+
+def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan: bool = True) -> CheckReport:
+    """Validate a config and everything it reads, before any rendering.
+
+    cfg: a loaded Config (``load_config(..., validate=False)`` so that every problem is
+    reported here). out_dir: the output folder a run would use (checked for
+    writability, an existing plan, free space); None to skip. workers: processes for
+    clip checks and planning. plan: also sample every scene in memory.
+    """
+    rep = CheckReport(f"config {cfg.name}")
+    for e in config_problems(cfg, geometry=False):
+        rep.error(e)
+    if rep.errors:
+        return rep  # later checks assume sane fields
+    for e in geometry_problems(cfg):
+        rep.error(e)
+    problem = rooms_without_bank(cfg)
+    if problem:
+        rep.error(problem)
+    for e in bank_problems(bank_request(cfg)):
+        rep.error(e)
+    if out_dir:
+        _check_out_dir(cfg, out_dir, rep)
+    with tempfile.TemporaryDirectory(prefix="tsel-check-") as scratch:
+        catalogs = _check_corpus(cfg, out_dir, Layout(scratch), workers, rep)
+        if plan and catalogs and not rep.errors:
+            _check_plan(cfg, catalogs, workers, rep, out_dir, Layout(scratch))
+    return rep
+
+
+def _check_out_dir(cfg: Config, out_dir: str, rep: CheckReport) -> None:
+    base = os.path.abspath(out_dir)
+    while not os.path.exists(base):
+        base = os.path.dirname(base)
+    if not os.path.isdir(base):
+        rep.error(DatasetError(f"output {out_dir}: {base} is a file, not a folder; choose another --out"))
+        return
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".tsel-check-", dir=base)
+        os.close(fd)
+        os.remove(probe)
+    except OSError as e:
+        rep.error(DatasetError(f"output {out_dir} is not writable ({base}: {e.strerror or e}); fix its permissions "
+                               f"or choose another --out"))
+        return
+    layout = Layout(out_dir)
+    state = planned_with(layout, cfg)
+    if state == "different":
+        rep.error(DatasetError(f"{out_dir} was planned with a different config ({layout.config_file}); choose "
+                               f"another --out, or use the same config to --resume"))
+    elif state == "same" and os.path.isfile(layout.dataset_file):
+        rep.warnings.append(f"{out_dir} already holds this finished dataset; `tsel check {out_dir}` verifies it")
+    elif state == "same":
+        rep.warnings.append(f"{out_dir} holds an unfinished run of this config; `tsel generate ... --resume` "
+                            f"continues it")
+    a = cfg.audio
+    n_scenes = sum(sp.count for sp in cfg.splits.values())
+    frames = int(round(a.duration / a.label_hop))
+    n_src = (cfg.scene.interferers.bounds or (1, 1))[1] + 1
+    per_scene = (len(CHANNEL_NAMES[cfg.scene.format]) * int(round(a.duration * a.fs)) * 4
+                 + n_src * frames * LABEL_BYTES_PER_SOURCE_FRAME + OVERHEAD_BYTES_PER_SCENE)
+    need = n_scenes * per_scene
+    free = shutil.disk_usage(base).free
+    rep.facts.update(estimated_bytes=need, free_bytes=free)
+    if need > free:
+        rep.warnings.append(f"the dataset needs about {need / 1e9:.1f} GB but {base} has {free / 1e9:.1f} GB free; "
+                            f"free space or choose another --out (an interrupted run resumes with --resume)")
+
+
+def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: CheckReport) -> dict:
+    """Read every split's manifest and check its clips; returns {split: good clips}."""
+    rep.facts["splits"] = {s: {"scenes": sp.count} for s, sp in cfg.splits.items()}
+    if not cfg.active_splits():
+        rep.warnings.append("no split has scenes to make; set splits.NAME.count or pass --split NAME=COUNT")
+        return {}
+    # a demo corpus already synthesised into --out is used as it is; else one in scratch
+    home = Layout(out_dir) if cfg.corpus.dir == BUILTIN_DEMO and out_dir and os.path.isfile(
+        os.path.join(Layout(out_dir).demo_corpus, "test.csv")) else scratch
+    try:
+        corpus_dir = resolve_corpus_dir(cfg, home.demo_corpus)
+    except TselError as e:
+        rep.error(e)
+        return {}
+    rep.facts["corpus_dir"] = corpus_dir if cfg.corpus.dir != BUILTIN_DEMO else BUILTIN_DEMO
+    scan = scan_catalog(cfg, corpus_dir, workers)
+    for e in scan.problems:
+        rep.error(e)
+    for b in scan.bad:
+        rep.bad_clips.append(b.to_json())
+        if cfg.on_bad_clip == "skip":
+            rep.warnings.append(f"{b.origin}: clip {b.clip_id}: {b.problem} (skipped: on_bad_clip = \"skip\")")
+    for split, c in scan.counts.items():
+        rep.facts["splits"][split].update(clips=c["clips"], bad=c["bad"], policy=cfg.on_bad_clip)
+    return scan.clips
+
+
+def _check_plan(cfg: Config, catalogs: dict, workers: int, rep: CheckReport, out_dir, scratch: Layout) -> None:
+    """Sample every scene in memory (what `tsel plan` would write), collecting failures."""
+    bank_path = None
+    if cfg.room.bank:
+        home = Layout(out_dir) if out_dir and os.path.exists(Layout(out_dir).demo_bank) else scratch
+        try:
+            bank_path = resolve_bank(bank_request(cfg), home.demo_bank)
+        except TselError as e:
+            rep.error(e)
+            return
+    for split, clips in catalogs.items():
+        try:
+            lines = plan_split_json(cfg, split, CatalogView(clips, bank_path), workers)
+        except TselError as e:
+            rep.error(e)
+            continue
+        rep.facts["splits"][split]["planned"] = len(lines)

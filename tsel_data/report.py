@@ -1,0 +1,77 @@
+"""What a check found: the report ``tsel check`` prints, for a config (preflight.py)
+and for a written dataset (store/verify.py).
+
+Checks collect every problem instead of stopping at the first, so a user sees all of
+them at once; ``report.raise_for_errors()`` turns the first into its TselError.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .errors import TselError
+
+
+@dataclass
+class CheckReport:
+    """What a check found.
+
+    target: what was checked (config name or dataset folder). errors: problems that
+    stop a run, as TselError instances (one-line messages). warnings: one-line strings
+    for things that work but deserve a look. bad_clips: {"split", "clip_id", "origin",
+    "problem"} for every clip the bad-clip policy applies to. facts: plain numbers
+    (clips, scenes, shards, bytes) for the summary.
+    """
+
+    target: str
+    errors: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+    bad_clips: list = field(default_factory=list)
+    facts: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.errors
+
+    def error(self, e: TselError | str, cls=TselError) -> None:
+        self.errors.append(e if isinstance(e, TselError) else cls(e))
+
+    def messages(self) -> list[str]:
+        return [str(e) for e in self.errors]
+
+    def raise_for_errors(self) -> None:
+        """Raise the first problem (its own TselError subclass), noting how many more there are."""
+        if not self.errors:
+            return
+        first = self.errors[0]
+        if len(self.errors) == 1:
+            raise first
+        raise type(first)(f"{first} (and {len(self.errors) - 1} more problem(s); run `tsel check` to list them)")
+
+    def to_dict(self) -> dict:
+        return {"target": self.target, "ok": self.ok, "errors": self.messages(), "warnings": list(self.warnings),
+                "bad_clips": list(self.bad_clips), "facts": self.facts}
+
+    def summary_lines(self) -> list[str]:
+        """Human summary (what was checked, counts); problems are in errors/warnings."""
+        f = self.facts
+        out = [f"{self.target}: {'OK' if self.ok else f'{len(self.errors)} problem(s)'}"]
+        for split, s in f.get("splits", {}).items():
+            parts = []
+            if "clips" in s:
+                parts.append(f"{s['clips']} clips")
+            if s.get("bad"):
+                parts.append(f"{s['bad']} bad ({s.get('policy', 'skip')})")
+            if "planned" in s:
+                parts.append(f"{s['planned']} scenes planned")
+            if "scenes" in s and "planned" not in s:
+                parts.append(f"{s['scenes']} scenes")
+            if "shards" in s:
+                parts.append(f"{s['shards']} shards")
+            out.append(f"  {split}: " + ", ".join(parts))
+        if "estimated_bytes" in f:
+            free = f.get("free_bytes")
+            out.append(f"  output about {f['estimated_bytes'] / 1e9:.2f} GB"
+                       + (f" ({free / 1e9:.1f} GB free)" if free is not None else ""))
+        if "bytes" in f:
+            out.append(f"  {f['bytes'] / 1e6:.1f} MB checked")
+        return out

@@ -1,0 +1,111 @@
+"""``dataset.json``: what a finished dataset holds (docs/format.md, "dataset.json").
+
+:func:`dataset_doc` builds the document ``finalize`` writes; :func:`load_dataset_doc`
+reads it back as a :class:`DatasetDoc`; :func:`shard_attrs` are the attributes every
+shard carries. :data:`CONVENTIONS` is the conventions block, in words.
+"""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+
+from ..version import __version__
+from ..errors import DatasetError
+from ..geometry import CHANNEL_NAMES
+from .layout import DATASET_FILE
+
+FORMAT_VERSION = 1
+
+CONVENTIONS = {
+    "array_frame": "right-handed, origin at the array centre, x front, y left, z up",
+    "azimuth": "degrees, counter-clockwise from +x seen from above, [-180, 180)",
+    "elevation": "degrees above the horizontal plane, [-90, 90]",
+    "distance": "metres from the array centre",
+    "label_frames": "frame k covers [k*hop, (k+1)*hop); position at the frame centre",
+    "foa": "ACN (W, Y, Z, X), SN3D",
+    "mic4": "mic k at azimuth 45 + 90k degrees, radius side/sqrt(2): front-left, back-left, back-right, front-right",
+    "sources": "source 0 is the target; NaN positions for absent or non-directional sources",
+}
+
+
+def shard_attrs(fs: int, label_hop: float, fmt: str) -> dict:
+    """The attributes of every shard (HDF5 attrs, JSON header) and of ``dataset.json``."""
+    return {"fs": fs, "label_hop": label_hop, "format": fmt, "channel_names": list(CHANNEL_NAMES[fmt]),
+            "format_version": FORMAT_VERSION}
+
+
+@dataclass(frozen=True)
+class ShardEntry:
+    """One shard in ``dataset.json``: its files (relative to the dataset folder), scene
+    count and checksums."""
+
+    file: str
+    json: str
+    scenes: int
+    sha256: str = ""
+    json_sha256: str = ""
+
+    def to_json(self) -> dict:
+        return {"file": self.file, "json": self.json, "scenes": self.scenes, "sha256": self.sha256,
+                "json_sha256": self.json_sha256}
+
+
+@dataclass(frozen=True)
+class DatasetDoc:
+    """A parsed ``dataset.json``. ``splits``: {name: [ShardEntry]} in file order;
+    ``counts``: {name: scenes the split lists}; ``raw``: the whole document."""
+
+    path: str
+    fs: int
+    label_hop: float
+    format: str
+    channel_names: list
+    config: dict
+    splits: dict
+    counts: dict
+    raw: dict = field(default_factory=dict, repr=False)
+
+    def shards(self, split: str) -> list[ShardEntry]:
+        return self.splits[split]
+
+
+def dataset_doc(config: dict, seed: int, attrs: dict, splits: dict[str, list[ShardEntry]]) -> dict:
+    """The document ``finalize`` writes: tool, version, format version, conventions, the
+    resolved config, seed, shard attributes, and per split its scene count and shards."""
+    return {"tool": "tsel-data", "version": __version__, "format_version": FORMAT_VERSION,
+            "conventions": CONVENTIONS, "config": config, "seed": seed, **attrs,
+            "splits": {s: {"scenes": sum(e.scenes for e in entries), "shards": [e.to_json() for e in entries]}
+                       for s, entries in splits.items()}}
+
+
+def load_dataset_doc(root: str) -> DatasetDoc:
+    """Parse ``ROOT/dataset.json`` (DatasetError with a clear message if absent or bad)."""
+    root = os.fspath(root)
+    path = os.path.join(root, DATASET_FILE)
+    if not os.path.isdir(root):
+        raise DatasetError(f"{root}: no such dataset directory")
+    if not os.path.exists(path):
+        raise DatasetError(f"{path} not found: {root} is not a tsel-data dataset (or generation has not finished)")
+    try:
+        with open(path, encoding="utf-8") as f:
+            doc = json.load(f)
+    except json.JSONDecodeError as e:
+        raise DatasetError(f"{path}: not valid JSON ({e})") from None
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path}: not UTF-8 text; rerun `tsel finalize {root}`") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("splits"), dict):
+        raise DatasetError(f"{path}: no 'splits' entry; is this a tsel-data dataset.json?")
+    try:
+        splits, counts = {}, {}
+        for name, s in doc["splits"].items():
+            splits[name] = [ShardEntry(str(e["file"]), str(e["json"]), int(e["scenes"]), str(e.get("sha256", "")),
+                                       str(e.get("json_sha256", ""))) for e in s.get("shards") or []]
+            counts[name] = int(s.get("scenes", 0))
+        return DatasetDoc(path=path, fs=int(doc.get("fs", 24000)), label_hop=float(doc.get("label_hop", 0.1)),
+                          format=str(doc.get("format", "")), channel_names=list(doc.get("channel_names") or []),
+                          config=doc.get("config") if isinstance(doc.get("config"), dict) else {},
+                          splits=splits, counts=counts, raw=doc)
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise DatasetError(f"{path}: incomplete or damaged ({type(e).__name__}: {e}); rerun "
+                           f"`tsel finalize {root}`") from None

@@ -1,0 +1,72 @@
+"""Every path name of a dataset folder (docs/format.md, "Layout"), in one place.
+
+    OUT/dataset.json            written last: its presence means the dataset is complete
+    OUT/plan/config.json        the resolved config the plan was made with
+    OUT/plan/{split}.jsonl      one scene recipe per line
+    OUT/bad_clips.jsonl         clips skipped by the bad-clip policy
+    OUT/{split}/shard-NNNNN.h5  audio and labels; .json: the same scenes' records
+    OUT/demo-corpus/, OUT/demo-bank.h5   built-in demo inputs, built on first use
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+DATASET_FILE = "dataset.json"
+PLAN_DIR = "plan"
+CONFIG_FILE = f"{PLAN_DIR}/config.json"
+BAD_CLIPS_FILE = "bad_clips.jsonl"
+DEMO_CORPUS_DIR = "demo-corpus"
+DEMO_BANK_FILE = "demo-bank.h5"
+
+
+def shard_names(split: str, shard: int) -> tuple[str, str]:
+    """Relative paths of shard ``shard`` of ``split``: (HDF5, JSON)."""
+    stem = f"{split}/shard-{shard:05d}"
+    return f"{stem}.h5", f"{stem}.json"
+
+
+@dataclass(frozen=True)
+class Layout:
+    """The files of the dataset folder ``root``; properties are full paths."""
+
+    root: str
+
+    def path(self, rel: str) -> str:
+        """A path relative to the dataset folder, made full."""
+        return os.path.join(self.root, rel)
+
+    @property
+    def dataset_file(self) -> str:
+        return self.path(DATASET_FILE)
+
+    @property
+    def plan_dir(self) -> str:
+        return self.path(PLAN_DIR)
+
+    @property
+    def config_file(self) -> str:
+        return self.path(CONFIG_FILE)
+
+    def plan_file(self, split: str) -> str:
+        return os.path.join(self.plan_dir, f"{split}.jsonl")
+
+    @property
+    def bad_clips_file(self) -> str:
+        return self.path(BAD_CLIPS_FILE)
+
+    @property
+    def demo_corpus(self) -> str:
+        return self.path(DEMO_CORPUS_DIR)
+
+    @property
+    def demo_bank(self) -> str:
+        return self.path(DEMO_BANK_FILE)
+
+    def split_dir(self, split: str) -> str:
+        return self.path(split)
+
+    def shard_files(self, split: str, shard: int) -> tuple[str, str]:
+        """Full paths of a shard's (HDF5, JSON) files."""
+        h5, js = shard_names(split, shard)
+        return self.path(h5), self.path(js)

@@ -1,0 +1,91 @@
+"""A dataset folder's plan: ``plan/config.json``, ``plan/{split}.jsonl``, and which
+shards it asks for.
+
+Shard *k* of a split holds that split's scenes ``k·shard_size … (k+1)·shard_size − 1``.
+These functions read plain data; parsing the stored config into a ``Config`` is the
+pipeline's job (the store does not depend on the config layer).
+"""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+
+from ..errors import DatasetError
+from ..recipe import SceneRecipe, read_plan
+from .layout import CONFIG_FILE, Layout, shard_names
+
+
+@dataclass(frozen=True)
+class ShardTask:
+    """Shard ``shard`` of ``split``: the split's scenes ``start`` .. ``stop - 1``."""
+
+    split: str
+    shard: int
+    start: int
+    stop: int
+
+    @property
+    def files(self) -> tuple[str, str]:
+        """(HDF5, JSON) paths relative to the dataset folder."""
+        return shard_names(self.split, self.shard)
+
+
+def shard_tasks(counts: dict[str, int], shard_size: int) -> list[ShardTask]:
+    """Every shard of a plan with ``counts`` scenes per split, split by split in order."""
+    tasks = []
+    for split, n in counts.items():
+        for k, start in enumerate(range(0, n, shard_size)):
+            tasks.append(ShardTask(split, k, start, min(start + shard_size, n)))
+    return tasks
+
+
+def shard_complete(layout: Layout, task: ShardTask) -> bool:
+    """Both of a shard's files exist under their final names (the writer renames the
+    HDF5 file last, so then the shard is whole)."""
+    h5, js = layout.shard_files(task.split, task.shard)
+    return os.path.isfile(h5) and os.path.isfile(js)
+
+
+def has_plan(layout: Layout) -> bool:
+    return os.path.isfile(layout.config_file)
+
+
+def read_plan_doc(layout: Layout) -> dict:
+    """``plan/config.json`` (written last by the plan stage): tool, version, the resolved
+    ``config`` as plain data, clip counts."""
+    path = layout.config_file
+    if not os.path.isfile(path):
+        raise DatasetError(f"{layout.root} has no plan ({CONFIG_FILE} missing); run `tsel plan` or `tsel generate` "
+                           f"first")
+    try:
+        with open(path, encoding="utf-8") as f:
+            doc = json.load(f)
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise DatasetError(f"{path} is damaged ({e}); plan again into a new --out") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("config"), dict):
+        raise DatasetError(f"{path} holds no config; plan again into a new --out")
+    return doc
+
+
+def stored_config(layout: Layout) -> dict | None:
+    """The config a folder was planned with (plain data), or None when it holds no
+    readable plan."""
+    try:
+        return read_plan_doc(layout)["config"] if has_plan(layout) else None
+    except DatasetError:
+        return None
+
+
+def read_split_plan(layout: Layout, split: str) -> list[SceneRecipe]:
+    """Every recipe of a split's plan file."""
+    return read_plan(layout.plan_file(split))
+
+
+def plan_ids(layout: Layout, split: str) -> list[str] | None:
+    """The scene ids of a split's plan file, in order (None when there is no such file)."""
+    path = layout.plan_file(split)
+    if not os.path.isfile(path):
+        return None
+    with open(path, encoding="utf-8") as f:
+        return [json.loads(line)["scene_id"] for line in f if line.strip()]

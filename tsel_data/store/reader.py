@@ -1,0 +1,278 @@
+"""Read a generated dataset: ``open_dataset(DIR, split)`` for trainers and tools.
+
+The reader opens nothing heavy up front: it reads ``dataset.json``, checks that the
+split and its shard files exist, and opens each HDF5 shard on first access *in the
+current process*. Pickling keeps only paths (``__getstate__`` drops the handles), and a
+handle opened before a ``fork`` is never reused in the child (the owning pid is
+checked), so a :class:`SceneDataset` is safe in PyTorch ``DataLoader`` workers.
+
+Layout read here: docs/format.md (``{split}/shard-NNNNN.h5`` + ``.json``).
+"""
+from __future__ import annotations
+
+import bisect
+import json
+import os
+from dataclasses import dataclass
+from typing import Iterator
+
+import h5py
+import numpy as np
+
+from ..errors import DatasetError
+from ..geometry import azimuth_difference, frame_centres
+from ..h5str import as_str
+from .dataset import DatasetDoc, load_dataset_doc
+from .records import LABEL_KEYS, SceneRecord
+
+
+@dataclass
+class Scene:
+    """One scene as a trainer sees it.
+
+    audio:         float32 [C, T] (None when read with ``audio=False``).
+    azimuth, elevation: float32 [S, F] degrees, array frame; NaN where a source has no
+                   position (additive sources). distance: float32 [S, F] metres.
+    active:        bool [S, F]. Source 0 is the target. S is this scene's own source
+                   count (shard padding removed).
+    mic_positions: float32 [C, 3] metres, array frame (FOA: zeros).
+    record:        the scene's :class:`~tsel_data.store.records.SceneRecord` (room,
+                   array pose, clips, captions, levels, seed), or None when read with
+                   ``load_records=False``.
+    """
+
+    scene_id: str
+    split: str
+    index: int
+    query: str
+    audio: np.ndarray | None
+    azimuth: np.ndarray
+    elevation: np.ndarray
+    distance: np.ndarray
+    active: np.ndarray
+    mic_positions: np.ndarray
+    fs: int
+    label_hop: float
+    format: str
+    record: SceneRecord | None = None
+
+    @property
+    def n_sources(self) -> int:
+        return int(self.azimuth.shape[0])
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.azimuth.shape[1])
+
+    @property
+    def target_moving(self) -> bool:
+        """Whether the target's azimuth changes over the scene (the record's flag if there
+        is a record, else more than 0.5° of change in the labels)."""
+        if self.record is not None and self.record.sources:
+            return self.record.sources[0].moving
+        az = self.azimuth[0]
+        ok = np.isfinite(az)
+        return bool(ok.any() and np.max(azimuth_difference(az[ok], az[ok][0])) > 0.5)
+
+    def frame_times(self) -> np.ndarray:
+        """Centre time (s) of each label frame, [F]."""
+        return frame_centres(self.n_frames, self.label_hop)
+
+
+class SceneDataset:
+    """Random access over the scenes of one split (``len``, ``[i]``, iteration).
+
+    ``ds[i]`` reads one scene (one HDF5 chunk of audio plus its labels);
+    ``ds.by_id(scene_id)`` looks a scene up by id; ``ds.records()`` iterates the JSON
+    records without touching audio. Negative indices count from the end.
+    """
+
+    def __init__(self, root: str, split: str, *, load_records: bool = True):
+        self.root = os.fspath(root)
+        self.split = split
+        self.load_records = load_records
+        self.doc: DatasetDoc = load_dataset_doc(self.root)
+        if split not in self.doc.splits:
+            have = ", ".join(sorted(self.doc.splits)) or "none"
+            raise DatasetError(f"{self.root}: no split {split!r} in dataset.json; available splits: {have}")
+        self.shards = list(self.doc.shards(split))
+        missing = [s.file for s in self.shards if not os.path.exists(os.path.join(self.root, s.file))]
+        if missing:
+            raise DatasetError(
+                f"{self.root}: split {split!r} is incomplete: {len(missing)} shard file(s) missing "
+                f"(first: {missing[0]}); re-run `tsel generate` with the same --out to resume"
+            )
+        self._starts = list(np.cumsum([0] + [s.scenes for s in self.shards]))
+        self.fs = self.doc.fs
+        self.label_hop = self.doc.label_hop
+        self.format = self.doc.format
+        self.channel_names = list(self.doc.channel_names)
+        self._reset_handles()
+
+    # --- process-local state --------------------------------------------------------
+    def _reset_handles(self) -> None:
+        self._pid = os.getpid()
+        self._h5: dict[int, h5py.File] = {}
+        self._json: dict[int, list[SceneRecord]] = {}
+        self._ids: dict[str, int] | None = None
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        for k in ("_h5", "_json", "_ids", "_pid"):
+            state.pop(k, None)
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._reset_handles()
+
+    def _file(self, k: int) -> h5py.File:
+        if self._pid != os.getpid():
+            # Inherited across fork: the parent's HDF5 handles must not be used here.
+            self._reset_handles()
+        f = self._h5.get(k)
+        if f is None:
+            path = os.path.join(self.root, self.shards[k].file)
+            try:
+                f = h5py.File(path, "r")
+            except OSError as e:
+                raise DatasetError(f"{path}: cannot open shard ({e}); the file is damaged, regenerate it") from None
+            self._h5[k] = f
+        return f
+
+    def _records(self, k: int) -> list[SceneRecord]:
+        recs = self._json.get(k)
+        if recs is None:
+            rel = self.shards[k].json
+            recs = []
+            if rel and self.load_records:
+                path = os.path.join(self.root, rel)
+                try:
+                    with open(path, encoding="utf-8") as fh:
+                        recs = [SceneRecord.from_json(r) for r in json.load(fh).get("scenes", [])]
+                except FileNotFoundError:
+                    raise DatasetError(f"{path}: shard labels missing; regenerate the dataset") from None
+                except json.JSONDecodeError as e:
+                    raise DatasetError(f"{path}: not valid JSON ({e})") from None
+            self._json[k] = recs
+        return recs
+
+    def close(self) -> None:
+        """Close every open shard of this process."""
+        if self._pid == os.getpid():
+            for f in self._h5.values():
+                f.close()
+        self._reset_handles()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # --- access ---------------------------------------------------------------------
+    def __len__(self) -> int:
+        return int(self._starts[-1])
+
+    def locate(self, i: int) -> tuple[int, int]:
+        """Global index -> (shard number, row in shard)."""
+        n = len(self)
+        if i < 0:
+            i += n
+        if not 0 <= i < n:
+            raise IndexError(f"scene index {i} out of range for split {self.split!r} with {n} scenes")
+        k = bisect.bisect_right(self._starts, i) - 1
+        return k, i - self._starts[k]
+
+    def __getitem__(self, i: int) -> Scene:
+        return self.get(int(i))
+
+    def get(self, i: int, audio: bool = True) -> Scene:
+        """Scene ``i``; ``audio=False`` skips the audio read (labels and metadata only)."""
+        k, r = self.locate(i)
+        i = self._starts[k] + r
+        f = self._file(k)
+        recs = self._records(k)
+        rec = recs[r] if r < len(recs) else None
+        lab = f["labels"]
+        arrays = {key: lab[key][r] for key in (*LABEL_KEYS, "active")}
+        # Shards pad S to their largest scene; trim to this scene's own sources.
+        n_src = len(rec.sources) if rec is not None and rec.sources else arrays["azimuth"].shape[0]
+        arrays = {key: a[:n_src] for key, a in arrays.items()}
+        return Scene(
+            scene_id=f["scene_id"].asstr()[r],
+            split=self.split,
+            index=i,
+            query=f["query"].asstr()[r],
+            audio=np.asarray(f["audio"][r], dtype=np.float32) if audio else None,
+            azimuth=arrays["azimuth"].astype(np.float32),
+            elevation=arrays["elevation"].astype(np.float32),
+            distance=arrays["distance"].astype(np.float32),
+            active=arrays["active"].astype(bool),
+            mic_positions=np.asarray(f["mic_positions"][r], dtype=np.float32),
+            fs=int(f.attrs.get("fs", self.fs)),
+            label_hop=float(f.attrs.get("label_hop", self.label_hop)),
+            format=as_str(f.attrs.get("format"), self.format),
+            record=rec,
+        )
+
+    def __iter__(self) -> Iterator[Scene]:
+        for i in range(len(self)):
+            yield self.get(i)
+
+    def iter_labels(self) -> Iterator[Scene]:
+        """Every scene without its audio (fast: labels and records only)."""
+        for i in range(len(self)):
+            yield self.get(i, audio=False)
+
+    def records(self) -> Iterator[SceneRecord]:
+        """The record of every scene, in order, without opening any HDF5 file (a generator)."""
+        for k in range(len(self.shards)):
+            yield from self._records(k)
+
+    def scene_ids(self) -> list[str]:
+        ids = self._id_index()
+        return sorted(ids, key=ids.__getitem__)
+
+    def index_of(self, scene_id: str) -> int:
+        """Global index of ``scene_id`` in this split (DatasetError if absent)."""
+        ids = self._id_index()
+        if scene_id not in ids:
+            raise DatasetError(f"{self.root}: no scene {scene_id!r} in split {self.split!r} ({len(self)} scenes)")
+        return ids[scene_id]
+
+    def by_id(self, scene_id: str, audio: bool = True) -> Scene:
+        return self.get(self.index_of(scene_id), audio=audio)
+
+    def __contains__(self, scene_id: str) -> bool:
+        return scene_id in self._id_index()
+
+    def _id_index(self) -> dict[str, int]:
+        if self._pid != os.getpid():
+            self._reset_handles()
+        if self._ids is None:
+            ids: dict[str, int] = {}
+            for k in range(len(self.shards)):
+                for r, sid in enumerate(self._file(k)["scene_id"].asstr()[:]):
+                    ids[sid] = self._starts[k] + r
+            self._ids = ids
+        return self._ids
+
+    def __repr__(self) -> str:
+        return f"SceneDataset({self.root!r}, split={self.split!r}, scenes={len(self)}, format={self.format!r})"
+
+
+def load_manifest(root: str) -> dict:
+    """The parsed ``ROOT/dataset.json`` as plain data (DatasetError if absent or bad);
+    :func:`~tsel_data.store.dataset.load_dataset_doc` gives it typed."""
+    return load_dataset_doc(root).raw
+
+
+def list_splits(root: str) -> list[str]:
+    """Split names of a dataset, in dataset.json order."""
+    return list(load_dataset_doc(root).splits)
+
+
+def open_dataset(root: str, split: str = "train", **kwargs) -> SceneDataset:
+    """Open one split of a dataset directory for reading (lazy; see :class:`SceneDataset`)."""
+    return SceneDataset(root, split, **kwargs)

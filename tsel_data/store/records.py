@@ -1,0 +1,209 @@
+"""The per-scene record of a JSON shard (docs/format.md, "JSON shard"), typed.
+
+``render`` builds a :class:`SceneRecord`; the writer stores ``to_json()``; the reader
+parses it back with ``from_json``; the tools read attributes. ``to_json()`` gives the
+keys in the contract's order, so the JSON bytes are those of format version 1.
+
+Records also answer ``record["key"]`` and ``record.get("key")`` with the JSON value, as
+the plain dicts of earlier releases did.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from ..recipe import BankWalk
+
+# Labels in the JSON are rounded: angles to 3 decimals, distances to 4, so the HDF5
+# (float32) and the JSON agree within this.
+LABEL_DECIMALS = {"azimuth": 3, "elevation": 3, "distance": 4}
+LABEL_ATOL = 2e-3
+LABEL_KEYS = ("azimuth", "elevation", "distance")
+
+
+def label_list(a: np.ndarray, decimals: int = 3) -> list:
+    """A label row as JSON: rounded numbers, null for NaN."""
+    return [None if not np.isfinite(v) else round(float(v), decimals) for v in a]
+
+
+def label_array(values) -> np.ndarray:
+    """A JSON label row back to float64 with NaN for null."""
+    return np.array([np.nan if v is None else v for v in values], dtype=np.float64)
+
+
+class _JsonMapping:
+    """``record["key"]`` / ``record.get("key")`` on the JSON form (compatibility)."""
+
+    @cached_property
+    def _json(self) -> dict:
+        return self.to_json()
+
+    def __getitem__(self, key):
+        return self._json[key]
+
+    def get(self, key, default=None):
+        return self._json.get(key, default)
+
+    def __contains__(self, key) -> bool:
+        return key in self._json
+
+    def keys(self):
+        return self._json.keys()
+
+
+@dataclass(frozen=True)
+class RoomRecord(_JsonMapping):
+    """The room: simulated (``dims`` m, requested ``rt60`` s, ``rt60_measured`` s or None),
+    or an RIR-bank room (``name``, ``bank`` path; ``dims``/``rt60`` when the bank knows them)."""
+
+    dims: list | None = None
+    rt60: float | None = None
+    rt60_measured: float | None = None
+    name: str | None = None
+    bank: str | None = None
+
+    @property
+    def is_bank(self) -> bool:
+        return self.bank is not None
+
+    def to_json(self) -> dict:
+        if self.is_bank:
+            return {"name": self.name, "bank": self.bank, "dims": self.dims, "rt60": self.rt60,
+                    "rt60_measured": self.rt60_measured}
+        return {"dims": self.dims, "rt60": self.rt60, "rt60_measured": self.rt60_measured}
+
+    @classmethod
+    def from_json(cls, d: dict | None) -> "RoomRecord":
+        d = d or {}
+        return cls(d.get("dims"), d.get("rt60"), d.get("rt60_measured"), d.get("name"), d.get("bank"))
+
+
+@dataclass(frozen=True)
+class ArrayRecord(_JsonMapping):
+    """The array: ``format``; ``centre`` [x, y, z] room frame m and ``yaw`` degrees (None
+    when a measured bank does not know them); ``side`` m (mic4); ``mic_positions``
+    [[x, y, z]] array frame m."""
+
+    format: str
+    centre: list | None = None
+    yaw: float | None = None
+    side: float | None = None
+    mic_positions: list | None = None
+
+    def to_json(self) -> dict:
+        return {"format": self.format, "centre": self.centre, "yaw": self.yaw, "side": self.side,
+                "mic_positions": self.mic_positions}
+
+    @classmethod
+    def from_json(cls, d: dict | None) -> "ArrayRecord":
+        d = d or {}
+        return cls(d.get("format", ""), d.get("centre"), d.get("yaw"), d.get("side"), d.get("mic_positions"))
+
+
+@dataclass(frozen=True)
+class SourceRecord(_JsonMapping):
+    """One source of a scene: its clip, how it was placed, its labels and level.
+
+    azimuth, elevation: [F] degrees, distance: [F] metres (None where positionless);
+    active: [F] bool; tir_db, gain_db: dB; level_dbfs: active-frame RMS of its image
+    in the mixture (mean over mic channels; W for FOA).
+    """
+
+    role: str
+    clip_id: str | None = None
+    audio: str | None = None
+    captions: list = field(default_factory=list)
+    spatial: str = "directional"
+    moving: bool = False
+    position: list | None = None
+    path: list | None = None
+    bank: BankWalk | None = None
+    azimuth: list = field(default_factory=list)
+    elevation: list = field(default_factory=list)
+    distance: list = field(default_factory=list)
+    active: list = field(default_factory=list)
+    tir_db: float | None = None
+    gain_db: float | None = None
+    level_dbfs: float | None = None
+
+    def to_json(self) -> dict:
+        return {"role": self.role, "clip_id": self.clip_id, "audio": self.audio, "captions": list(self.captions),
+                "spatial": self.spatial, "moving": self.moving, "position": self.position, "path": self.path,
+                "bank": None if self.bank is None else self.bank.to_dict(),
+                "azimuth": self.azimuth, "elevation": self.elevation, "distance": self.distance,
+                "active": self.active, "tir_db": self.tir_db, "gain_db": self.gain_db, "level_dbfs": self.level_dbfs}
+
+    @classmethod
+    def from_json(cls, d: dict, k: int = 0) -> "SourceRecord":
+        bank = d.get("bank")
+        return cls(role=d.get("role") or ("target" if k == 0 else "interferer"), clip_id=d.get("clip_id"),
+                   audio=d.get("audio"), captions=list(d.get("captions") or []),
+                   spatial=d.get("spatial", "directional"), moving=bool(d.get("moving", False)),
+                   position=d.get("position"), path=d.get("path"),
+                   bank=None if bank is None else BankWalk.from_dict(bank),
+                   azimuth=d.get("azimuth") or [], elevation=d.get("elevation") or [],
+                   distance=d.get("distance") or [], active=d.get("active") or [], tir_db=d.get("tir_db"),
+                   gain_db=d.get("gain_db"), level_dbfs=d.get("level_dbfs"))
+
+    def labels(self, key: str) -> np.ndarray:
+        """One label row (``azimuth``, ``elevation`` or ``distance``) as float64 [F], NaN for null."""
+        return label_array(getattr(self, key))
+
+
+@dataclass(frozen=True)
+class LevelsRecord(_JsonMapping):
+    """``target_level_dbfs`` requested, ``peak`` of the mixture, ``normalisation_db``
+    (<= 0: the gain applied to the whole mix to avoid clipping)."""
+
+    target_level_dbfs: float | None = None
+    peak: float | None = None
+    normalisation_db: float | None = None
+
+    def to_json(self) -> dict:
+        return {"target_level_dbfs": self.target_level_dbfs, "peak": self.peak,
+                "normalisation_db": self.normalisation_db}
+
+    @classmethod
+    def from_json(cls, d: dict | None) -> "LevelsRecord":
+        d = d or {}
+        return cls(d.get("target_level_dbfs"), d.get("peak"), d.get("normalisation_db"))
+
+
+@dataclass(frozen=True)
+class SceneRecord(_JsonMapping):
+    """Everything known about one rendered scene (docs/format.md); source 0 is the target."""
+
+    scene_id: str
+    split: str
+    index: int
+    seed: int | None
+    scenario: str
+    query: str
+    motion: str
+    rir_method: str
+    room: RoomRecord
+    array: ArrayRecord
+    sources: tuple[SourceRecord, ...]
+    levels: LevelsRecord
+
+    @property
+    def target(self) -> SourceRecord:
+        return self.sources[0]
+
+    def to_json(self) -> dict:
+        return {"scene_id": self.scene_id, "split": self.split, "index": self.index, "seed": self.seed,
+                "scenario": self.scenario, "query": self.query, "motion": self.motion,
+                "rir_method": self.rir_method, "room": self.room.to_json(), "array": self.array.to_json(),
+                "sources": [s.to_json() for s in self.sources], "levels": self.levels.to_json()}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "SceneRecord":
+        """Parse a record; keys a record lacks take their 'unknown' value (None, "unknown")."""
+        return cls(scene_id=d.get("scene_id", ""), split=d.get("split", ""), index=d.get("index", -1),
+                   seed=d.get("seed"), scenario=d.get("scenario", "unknown"), query=d.get("query", ""),
+                   motion=d.get("motion", "unknown"), rir_method=d.get("rir_method", "unknown"),
+                   room=RoomRecord.from_json(d.get("room")), array=ArrayRecord.from_json(d.get("array")),
+                   sources=tuple(SourceRecord.from_json(s, k) for k, s in enumerate(d.get("sources") or [])),
+                   levels=LevelsRecord.from_json(d.get("levels")))
