@@ -134,3 +134,7 @@ def plan_recipes(cfg, split, view):
     from tsel_data.plan import plan_scene
 
     return [plan_scene(cfg, split, i, view) for i in range(cfg.splits[split].count)]
+
+
+# The real AudioCaps manifests, beside the checkout when available (tests that need them skip otherwise).
+SHARED_AUDIOCAPS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "audiocaps")

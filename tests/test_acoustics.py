@@ -7,14 +7,32 @@ import pytest
 from scipy.signal import resample
 
 from tsel_data.acoustics import SOUND_SPEED, simulate_rirs
-from tsel_data.acoustics.ism import image_chunks, render_impulses
-from tsel_data.acoustics.metrics import coherence, edc, t30
+from tsel_data.acoustics.ism import add_impulses, grid_to_signal, image_chunks, new_grid
+from tsel_data.acoustics.metrics import edc, t30
 from tsel_data.acoustics.shoebox import TRANSITION, shoebox_rirs
 from tsel_data.errors import GeometryError
-from tsel_data.geometry import array_to_room, foa_gains
-from tsel_data.geometry import ArrayPose, Room
+from tsel_data.geometry import ArrayPose, Room, array_to_room, foa_gains
 
 FS = 24000
+
+
+def render_impulses(delays, weights, length):
+    """Band-limited impulse trains [C, length]: channel c = sum_i weights[c][i] h(n - delays[c][i])."""
+    grid = new_grid(len(delays), length)
+    for c, (d, w) in enumerate(zip(delays, weights)):
+        add_impulses(grid, c, d, w)
+    return grid_to_signal(grid)
+
+
+def coherence(x, y, fs, nperseg=512):
+    """Real part of the complex coherence Re{S_xy / sqrt(S_xx S_yy)} (Welch): (frequencies Hz, coherence).
+    A diffuse field gives sinc(k d) between two omnis d metres apart."""
+    from scipy.signal import csd, welch
+
+    f, sxy = csd(x, y, fs=fs, nperseg=nperseg)
+    _, sxx = welch(x, fs=fs, nperseg=nperseg)
+    _, syy = welch(y, fs=fs, nperseg=nperseg)
+    return f, np.real(sxy) / np.sqrt(np.maximum(sxx * syy, np.finfo(float).tiny))
 
 
 def _passband_gain(seg: np.ndarray) -> float:

@@ -20,3 +20,15 @@ def test_banks_api_example_runs(tmp_path, monkeypatch):
     assert bank.format == "foa" and bank.rooms == ["sim01"]
     assert y.shape[0] == 4 and y.shape[1] == 10 * bank.fs + ns["rirs"].shape[-1] - 1
     assert labels.shape == (100, 3) and (tmp_path / "demo-bank.h5").exists()
+
+
+def test_config_doc_tables_match_the_schema():
+    """docs/config.md's key tables are the schema's (regenerate: python -m tsel_data.config.doc docs/config.md)."""
+    from tsel_data.config import SECTIONS
+    from tsel_data.config.doc import render, tables
+
+    text = (DOCS / "config.md").read_text(encoding="utf-8")
+    assert render(text) == text, "docs/config.md is stale: run python -m tsel_data.config.doc docs/config.md"
+    for name in ("top", "splits", *SECTIONS):
+        assert f"<!-- keys:{name} -->" in text, f"docs/config.md has no table for {name}"
+    assert "| `rt60` |" in tables()["room"] and "| s |" in tables()["room"]

@@ -13,13 +13,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import datasetfixture
 from tsel_data.clip import Clip
 from tsel_data.errors import ManifestError
 from tsel_data.manifests import (FORMATS, detect_format, missing_audio, read_audiocaps,
                                  read_clotho, read_manifest, read_plain, read_wavcaps)
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED_AUDIOCAPS = REPO.parent / "shared" / "audiocaps"
+SHARED_AUDIOCAPS = Path(datasetfixture.SHARED_AUDIOCAPS)
 AC_HEADER = ["audiocap_id", "youtube_id", "start_time", "caption"]
 UNICODE = "café — ünïcode 雨の音 🐦"
 

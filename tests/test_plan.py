@@ -7,11 +7,10 @@ import pytest
 from tsel_data.captions import max_similarity, tokens
 from tsel_data.catalog import build_catalog
 from tsel_data.geometry import cart_to_sph, room_to_array, azimuth_difference
-from datasetfixture import plan_recipes
+from datasetfixture import SHARED_AUDIOCAPS as AUDIOCAPS, plan_recipes
 from tsel_data.plan import CatalogView, plan_scene, plan_split_json
 from tsel_data.recipe import SceneRecipe
 
-AUDIOCAPS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "audiocaps")
 
 
 @pytest.fixture

@@ -98,8 +98,19 @@ def read_split_clips(cfg: Config, split: str, corpus_dir: str) -> list[Clip]:
 def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1) -> CatalogScan:
     """Read and check every split that makes scenes; collect, never raise.
 
-    corpus_dir: the resolved corpus folder (:func:`resolve_corpus_dir`). workers:
-    processes for the ``full`` clip check.
+    Parameters
+    ----------
+    cfg : Config
+        Splits, ``corpus.*`` (format, audio folder and template, check level, limits),
+        ``on_bad_clip``.
+    corpus_dir : str
+        The resolved corpus folder (:func:`resolve_corpus_dir`).
+    workers : int
+        Processes for the ``full`` clip check.
+
+    Returns
+    -------
+    CatalogScan
     """
     scan = CatalogScan()
     seen: dict = {}
@@ -134,7 +145,25 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1) -> CatalogScan:
 
 
 def build_catalog(cfg: Config, corpus_dir: str, workers: int = 1) -> CatalogScan:
-    """:func:`scan_catalog`, raising its first problem (and how many more there are)."""
+    """:func:`scan_catalog`, raising its first problem.
+
+    Parameters
+    ----------
+    cfg : Config
+    corpus_dir : str
+        The resolved corpus folder.
+    workers : int
+
+    Returns
+    -------
+    CatalogScan
+        With no problems: at least two usable clips in every split that makes scenes.
+
+    Raises
+    ------
+    TselError
+        The first problem (ManifestError, AudioError, ...), saying how many more there are.
+    """
     scan = scan_catalog(cfg, corpus_dir, workers)
     if scan.problems:
         first, more = scan.problems[0], len(scan.problems) - 1

@@ -20,6 +20,21 @@ KINDS = ("const", "uniform", "choose", "normal", "truncnorm")
 
 @dataclass(frozen=True)
 class Dist:
+    """A sampled parameter: ``kind`` (one of :data:`KINDS`) and its arguments.
+
+    Parameters
+    ----------
+    kind : str
+        ``const``, ``uniform``, ``choose``, ``normal`` or ``truncnorm``.
+    args : tuple
+        As written in the config after the kind (``choose``: (options,) or (options,
+        weights)).
+
+    ``Dist.parse(value, where)`` validates a config value; ``sample(rng)`` draws from a
+    caller's generator; ``bounds`` is the numeric range it can produce (for checks over
+    a whole range); ``options`` the values of a const/choose; ``to_json`` the config form.
+    """
+
     kind: str
     args: tuple
 

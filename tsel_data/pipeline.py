@@ -50,9 +50,29 @@ def planned_with(layout: Layout, cfg: Config) -> str:
 
 
 def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False) -> dict:
-    """Check the corpus and write the plan into ``out_dir``. Returns {split: scene count}.
+    """Check the corpus and write the plan into ``out_dir``.
 
-    resume: accept an existing plan of the same config (and plan nothing).
+    Parameters
+    ----------
+    cfg : Config
+    out_dir : str
+        The dataset folder (created).
+    workers : int
+        Processes for clip checks and planning.
+    resume : bool
+        Accept an existing plan of the same config (and plan nothing).
+
+    Returns
+    -------
+    dict
+        {split: scenes planned}.
+
+    Raises
+    ------
+    DatasetError
+        ``out_dir`` holds a plan (without ``resume``) or a plan of another config.
+    TselError
+        Any problem of the corpus or the bank (the first; ``tsel check`` lists all).
     """
     layout = Layout(out_dir)
     state = planned_with(layout, cfg)
@@ -86,7 +106,13 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
 
 
 def load_plan(out_dir: str) -> tuple[Config, dict[str, list[SceneRecipe]]]:
-    """The stored config and every split's recipes."""
+    """The stored config and every split's recipes.
+
+    Returns
+    -------
+    (Config, dict)
+        The config ``plan/config.json`` holds, and {split: [SceneRecipe]} in plan order.
+    """
     layout = Layout(out_dir)
     cfg = parse_config(read_plan_doc(layout)["config"], where=layout.config_file)
     return cfg, {s: read_split_plan(layout, s) for s in cfg.splits}
@@ -116,10 +142,27 @@ def _render_task(args) -> tuple[ShardTask, int]:
 
 def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, progress: bool = True,
                   executor: str = "local", scheduler: str | None = None) -> dict:
-    """Render the plan's shards (all, or the indices in ``shards`` of the global shard list).
+    """Render the plan's shards; complete shards are skipped.
 
-    Complete shards are skipped. ``executor``: local | dask | dask-local (executors.py).
-    Returns {split: scenes rendered now}.
+    Parameters
+    ----------
+    out_dir : str
+        A planned dataset folder.
+    shards : range, optional
+        Indices into the plan's global shard list (split by split, in order); all if None.
+    workers : int
+        Processes (or Dask workers for ``dask-local``).
+    progress : bool
+        A progress bar per split.
+    executor : str
+        ``local`` | ``dask`` | ``dask-local`` (executors.py).
+    scheduler : str, optional
+        The Dask scheduler's address for ``dask``.
+
+    Returns
+    -------
+    dict
+        {split: scenes rendered now}.
     """
     out_dir = os.path.abspath(out_dir)  # dask workers may run elsewhere on a shared filesystem
     layout = Layout(out_dir)
@@ -157,7 +200,18 @@ def _bar(split: str, total: int, initial: int, progress: bool):
 
 
 def finalize(out_dir: str) -> dict:
-    """Check every shard against the plan and write ``dataset.json`` (atomically, last)."""
+    """Check every shard against the plan and write ``dataset.json`` (atomically, last).
+
+    Returns
+    -------
+    dict
+        The ``dataset.json`` document.
+
+    Raises
+    ------
+    DatasetError
+        A shard is missing or holds other scenes than the plan puts there.
+    """
     layout = Layout(out_dir)
     cfg, plans = load_plan(out_dir)
     entries: dict[str, list] = {split: [] for split in plans}  # config order
@@ -185,8 +239,17 @@ def finalize(out_dir: str) -> dict:
 
 def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, progress: bool = True,
              executor: str = "local", scheduler: str | None = None) -> dict:
-    """Plan, render and finalize a dataset. Returns a summary dict: out, splits (scenes
-    per split), rendered_now, bad_clips, plan_seconds, render_seconds, bytes on disk."""
+    """Plan, render and finalize a dataset (the three stages above, in one call).
+
+    Parameters are those of :func:`plan_dataset` and :func:`render_shards`.
+
+    Returns
+    -------
+    dict
+        ``out``, ``splits`` ({split: scenes}), ``rendered_now`` ({split: scenes rendered by
+        this call}), ``bad_clips`` (count), ``plan_seconds``, ``render_seconds``, ``bytes``
+        (on disk).
+    """
     t0 = time.perf_counter()
     plan_dataset(cfg, out_dir, workers=workers, resume=resume)
     t1 = time.perf_counter()

@@ -56,11 +56,31 @@ def scene_rng(seed: int, split: str, index: int) -> np.random.Generator:
 def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRecipe:
     """The recipe of scene ``index`` of ``split``.
 
-    Draws, in order: scenario, interferer count, the target clip and the caption used as
-    the query, interferers whose captions are not too similar to the query
-    (``scene.caption_similarity``), TIRs, then the room, array and source placement
-    (simulated rooms) or the bank room and each source's walk (``cat.bank_path``).
-    Raises TselError/GeometryError when no valid scene can be drawn.
+    Draws, in order, from :func:`scene_rng`: scenario, interferer count, the target clip
+    and the caption used as the query, interferers whose captions are not too similar
+    to the query (``scene.caption_similarity``), TIRs, then the room, array and source
+    placement (simulated rooms) or the bank room and each source's walk.
+
+    Parameters
+    ----------
+    cfg : Config
+        The dataset config.
+    split : str
+        Split name (seeds the scene's generator with ``index``).
+    index : int
+        Scene index within the split.
+    cat : CatalogView
+        The split's usable clips, and the resolved bank path for bank scenes.
+
+    Returns
+    -------
+    SceneRecipe
+        Validated (every point inside its room with the wall margins).
+
+    Raises
+    ------
+    TselError, GeometryError
+        No interferer or placement satisfies the constraints within the tries allowed.
     """
     rng = scene_rng(cfg.seed, split, index)
     sc = cfg.scene
@@ -307,6 +327,21 @@ def plan_split_json(cfg: Config, split: str, cat: CatalogView, workers: int = 1,
     """JSON lines of a split's recipes, planned on ``workers`` processes.
 
     Scenes are independent, so the result is the same for any number of workers.
+
+    Parameters
+    ----------
+    cfg : Config
+    split : str
+    cat : CatalogView
+    workers : int
+        Processes; 1 plans in this process.
+    chunk : int
+        Scenes per task.
+
+    Returns
+    -------
+    list of str
+        ``splits[split].count`` lines, scene 0 first (``SceneRecipe.to_json``).
     """
     n = cfg.splits[split].count
     bounds = [(a, min(a + chunk, n)) for a in range(0, n, chunk)]

@@ -36,10 +36,22 @@ OVERHEAD_BYTES_PER_SCENE = 2000
 def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan: bool = True) -> CheckReport:
     """Validate a config and everything it reads, before any rendering.
 
-    cfg: a loaded Config (``load_config(..., validate=False)`` so that every problem is
-    reported here). out_dir: the output folder a run would use (checked for
-    writability, an existing plan, free space); None to skip. workers: processes for
-    clip checks and planning. plan: also sample every scene in memory.
+    Parameters
+    ----------
+    cfg : Config
+        Loaded with ``load_config(..., validate=False)``, so every problem is reported here.
+    out_dir : str, optional
+        The output folder a run would use (checked for writability, an existing plan,
+        free space).
+    workers : int
+        Processes for clip checks and planning.
+    plan : bool
+        Also sample every scene in memory.
+
+    Returns
+    -------
+    CheckReport
+        Every problem (``errors``), what deserves a look (``warnings``), bad clips, facts.
     """
     rep = CheckReport(f"config {cfg.name}")
     for e in config_problems(cfg, geometry=False):

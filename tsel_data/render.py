@@ -108,11 +108,27 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
 
 
 def render_scene(recipe: SceneRecipe) -> RenderedScene:
-    """Render one scene: the mixture [C, T], per-frame labels [S, F] and its record.
+    """Render one scene: its mixture, per-frame labels and record.
 
     Depends on nothing but the recipe and the files it names (clips, the RIR bank), so
-    any worker, at any time, renders the same bytes. Raises AudioError for a source
-    silent in the part of its clip the scene uses.
+    any worker, at any time, renders the same bytes.
+
+    Parameters
+    ----------
+    recipe : SceneRecipe
+
+    Returns
+    -------
+    RenderedScene
+        ``audio`` float32 [C, T] (T = duration·fs), ``azimuth``/``elevation`` float32
+        [S, F] degrees and ``distance`` [S, F] metres in the array frame (NaN for additive
+        sources), ``active`` bool [S, F], ``mic_positions`` float32 [C, 3] metres, and the
+        :class:`~tsel_data.store.records.SceneRecord`.
+
+    Raises
+    ------
+    AudioError
+        A source is silent in the part of its clip the scene uses.
     """
     fs, hop, nf = recipe.fs, recipe.label_hop, recipe.n_frames
     fmt = recipe.array.format

@@ -159,15 +159,6 @@ def grid_to_signal(grid: np.ndarray) -> np.ndarray:
     return out[:, first : first + length]
 
 
-def render_impulses(delays: list[np.ndarray], weights: list[np.ndarray], length: int) -> np.ndarray:
-    """Band-limited impulse trains [C, length] float64, channel c = ``Σ_i weights[c][i] ·
-    h(n - delays[c][i])`` (see :func:`add_impulses`)."""
-    grid = new_grid(len(delays), length)
-    for c, (d, w) in enumerate(zip(delays, weights)):
-        add_impulses(grid, c, d, w)
-    return grid_to_signal(grid)
-
-
 # --- expected energy decay (continuum model) --------------------------------------------
 @lru_cache(maxsize=1)
 def _octant_directions(n: int = 16):

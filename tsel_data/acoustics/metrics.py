@@ -38,15 +38,3 @@ def decay_time(edc_db: np.ndarray, dt: float, lo: float = -5.0, hi: float = -35.
 def t30(rir: np.ndarray, fs: int) -> float:
     """T30 (s) of a 1-D impulse response at ``fs`` Hz: Schroeder EDC, -5 to -35 dB fit, ×2."""
     return decay_time(edc(np.asarray(rir).reshape(-1)), 1.0 / fs)
-
-
-def coherence(x: np.ndarray, y: np.ndarray, fs: int, nperseg: int = 512) -> tuple[np.ndarray, np.ndarray]:
-    """Real part of the complex coherence Re{S_xy / sqrt(S_xx S_yy)} (Welch, Hann, 50 %
-    overlap) of two signals. Returns (frequencies Hz [F], coherence [F]). A diffuse field
-    gives sinc(k d) between two omnis d metres apart."""
-    from scipy.signal import csd, welch
-
-    f, sxy = csd(x, y, fs=fs, nperseg=nperseg)
-    _, sxx = welch(x, fs=fs, nperseg=nperseg)
-    _, syy = welch(y, fs=fs, nperseg=nperseg)
-    return f, np.real(sxy) / np.sqrt(np.maximum(sxx * syy, np.finfo(float).tiny))

@@ -11,12 +11,29 @@ RIR_METHODS = values(RirMethod)
 
 def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: int = 0,
                   one_source: bool = False) -> RirSet:
-    """RIRs [S, C, L] from room-frame ``points`` [S, 3] (m) to ``array``'s channels.
+    """RIRs from room-frame points to an array's channels.
 
-    room: :class:`~tsel_data.geometry.Room`. array: :class:`~tsel_data.geometry.ArrayPose`.
-    fs: Hz. method: one of :data:`RIR_METHODS`. seed: the stochastic parts (late tail).
-    one_source: the points are the knots of one moving source (the stochastic late tail
-    is then one realisation shared by all knots).
+    Parameters
+    ----------
+    room : Room
+        Shoebox dims (m) and requested RT60 (s).
+    array : ArrayPose
+    points : array_like, [S, 3]
+        Source positions, room frame, metres.
+    fs : int
+        Hz.
+    method : str
+        One of :data:`RIR_METHODS`.
+    seed : int
+        The stochastic parts (late tail, pyroomacoustics' global state).
+    one_source : bool
+        The points are the knots of one moving source (one late-tail realisation shared
+        by all knots).
+
+    Returns
+    -------
+    RirSet
+        ``rirs`` float32 [S, C, L], sample 0 = emission time; ``rt60_measured`` (s) or None.
     """
     points = np.atleast_2d(np.asarray(points, dtype=np.float64))
     # each method is imported when used: pyroomacoustics and scipy.signal are slow to

@@ -19,7 +19,7 @@ _BLOCK = re.compile(r"(<!-- keys:(?P<name>[\w.]+) -->\n)(?P<body>.*?)(<!-- /keys
 def tables() -> dict[str, str]:
     """{section name: markdown table}; ``top`` for the top-level keys, ``splits`` for a split."""
     default = Config()
-    out = {"top": _table([f for f in fields(Config) if f.name in TOP_FIELDS], default)}
+    out = {"top": _table([f for f in fields(Config) if f.name in TOP_FIELDS], default)}  # splits: see below
     out["splits"] = _table(fields(SplitConfig), SplitConfig())
     for sec, cls in SECTIONS.items():
         out[sec] = _table(fields(cls), cls())
@@ -36,7 +36,7 @@ def _table(specs, default) -> str:
         meaning = m["doc"]
         if m.get("choices"):
             meaning += "; one of " + ", ".join(f"`{c}`" for c in m["choices"])
-        rows.append(f"| `{f.name}` | `{shown}` | {m.get('unit', '')} | {meaning} |")
+        rows.append(f"| `{f.name}` | `{shown}` | {m.get('unit') or '—'} | {meaning} |")
     return "\n".join(rows) + "\n"
 
 

@@ -36,13 +36,33 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
                 corpus_dir: str | None = None, bank: str | None = None, seed: int | None = None,
                 splits: dict | None = None, validate: bool = True) -> Config:
     """Build a Config from a preset and/or a TOML file, then ``--set`` overrides, then the
-    CLI's shortcuts.
+    CLI's shortcuts (later ones win).
 
-    preset: a built-in preset name. path: a TOML file. overrides: ``section.key=value``
-    strings (value in TOML syntax, or a bare word). corpus_dir, bank, seed: set
-    ``corpus.dir``, ``room.bank``, ``seed``. splits: ``{name: count}``. validate:
-    raise the first problem of the parsed config (``tsel check`` passes False and then
-    collects every problem itself).
+    Parameters
+    ----------
+    preset : str, optional
+        A built-in preset name (:func:`preset_names`).
+    path : str, optional
+        A TOML file; its relative paths resolve against its folder.
+    overrides : iterable of str
+        ``section.key=value`` (value in TOML syntax, or a bare word).
+    corpus_dir, bank : str, optional
+        Set ``corpus.dir`` and ``room.bank``.
+    seed : int, optional
+    splits : dict, optional
+        {split name: scene count}.
+    validate : bool
+        Raise the first problem of the parsed config; ``tsel check`` passes False and
+        collects every problem itself.
+
+    Returns
+    -------
+    Config
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file or preset, the key and the fix.
     """
     raw: dict = {}
     if preset:

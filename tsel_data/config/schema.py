@@ -52,7 +52,8 @@ class CorpusConfig:
                                 "`none` (trust the manifest; a silent source is then an error at render time)",
                         choices=CheckLevel)
     min_duration: float = option(1.0, "shorter clips are bad clips", unit="s")
-    max_channels: int = option(8, "a file with more channels is a bad clip (probably not a recording)")
+    max_channels: int = option(8, "a file with more channels is a bad clip (probably not a recording)",
+                               unit="channels")
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,7 @@ class SplitConfig:
     from the split's own manifest, so a corpus' split is kept."""
 
     manifest: str = option("", "manifest file, relative to `corpus.dir`")
-    count: int = option(0, "scenes to make (`--split NAME=COUNT` overrides)", ge=0)
+    count: int = option(0, "scenes to make (`--split NAME=COUNT` overrides)", unit="scenes", ge=0)
     rooms: tuple = option((), "RIR-bank rooms this split may use (bank datasets), by name or number. Empty: the "
                               "rooms no other split names (every room when no split names any), so a split never "
                               "draws another split's rooms; a room named by two splits is an error")
@@ -88,21 +89,22 @@ class SceneConfig:
                           "`two-directional`, or `directional+additive` (the first interferer added to every "
                           "channel unspatialised), or a `choose` of both", choices=Scenario)
     interferers: Dist = dist(1, "interferers per scene (a distribution is allowed); in `directional+additive` the "
-                                "first is additive", ge=1, why="a scene holds at least two sources")
+                                "first is additive", unit="sources", ge=1, why="a scene holds at least two sources")
     tir_db: Dist = dist(["uniform", -5.0, 5.0], "target-to-interferer ratio at the array, per interferer", unit="dB")
     min_separation: float = option(20.0, "minimum azimuth between directional sources", unit="deg")
     separated_frames: float = option(0.8, "fraction of label frames on which `min_separation` must hold; static "
                                           "sources hold it on every frame or none, a moving source may cross "
                                           "another for the rest (at 40 °/s a 10 s walk goes all the way round)",
-                                     gt=0.0, le=1.0)
+                                     unit="fraction", gt=0.0, le=1.0)
     caption_similarity: float = option(0.5, "an interferer is rejected if any of its captions shares more than this "
                                             "word overlap (Jaccard, function words ignored) with the query, so the "
-                                            "query picks out one source")
+                                            "query picks out one source", unit="Jaccard 0-1")
     motion: str = option("static", "`static`, `moving` or `mixed`. In simulated rooms a moving source follows "
                                    "`path`, with an RIR at least every 100 ms and every 4°; with a bank it walks a "
                                    "bank trajectory, starting at a random point in a random direction",
                          choices=Motion)
-    moving_fraction: float = option(0.5, "with `mixed`: probability that a directional source moves", ge=0.0, le=1.0)
+    moving_fraction: float = option(0.5, "with `mixed`: probability that a directional source moves",
+                                    unit="probability", ge=0.0, le=1.0)
     speed: Dist = dist(["choose", [10.0, 20.0, 40.0]],
                        "angular speed of moving sources as seen from the array, great-circle arc (the DCASE "
                        "generator's set), for bank walks and simulated paths alike: a simulated arc at elevation e "
@@ -153,7 +155,8 @@ class SourcesConfig:
 class OutputConfig:
     """How scenes are stored."""
 
-    shard_size: int = option(128, "scenes per shard (a 10 s 4-channel 24 kHz scene is 3.84 MB)", ge=1)
+    shard_size: int = option(128, "scenes per shard (a 10 s 4-channel 24 kHz scene is 3.84 MB)", unit="scenes",
+                             ge=1)
 
 
 @dataclass(frozen=True)

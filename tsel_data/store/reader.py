@@ -274,5 +274,24 @@ def list_splits(root: str) -> list[str]:
 
 
 def open_dataset(root: str, split: str = "train", **kwargs) -> SceneDataset:
-    """Open one split of a dataset directory for reading (lazy; see :class:`SceneDataset`)."""
+    """Open one split of a dataset folder for reading.
+
+    Parameters
+    ----------
+    root : str
+        The dataset folder (``tsel generate --out``).
+    split : str
+    load_records : bool, keyword
+        Parse the JSON records (``Scene.record``); False leaves them None.
+
+    Returns
+    -------
+    SceneDataset
+        Lazy: only ``dataset.json`` is read now; safe to pass to DataLoader workers.
+
+    Raises
+    ------
+    DatasetError
+        No such folder, split, or missing shard files.
+    """
     return SceneDataset(root, split, **kwargs)

@@ -28,8 +28,20 @@ from .writer import sha256_file
 
 
 def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckReport:
-    """Verify the dataset folder ``out_dir``; ``workers`` processes check shards in
-    parallel; ``audio=False`` skips the finite-sample check."""
+    """Verify a dataset folder.
+
+    Parameters
+    ----------
+    out_dir : str
+    workers : int
+        Processes checking shards in parallel.
+    audio : bool
+        Also check that every audio sample is finite.
+
+    Returns
+    -------
+    CheckReport
+    """
     rep = CheckReport(f"dataset {out_dir}")
     if not os.path.isdir(out_dir):
         rep.error(DatasetError(f"{out_dir}: no such folder; give the --out folder of `tsel generate`"))
