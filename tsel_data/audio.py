@@ -151,3 +151,41 @@ def load_clip_cached(path: str, fs: int, duration: float, offset: float) -> np.n
     x = load_clip(path, fs, duration, offset)
     x.setflags(write=False)
     return x
+
+
+def save_wav(path, audio: np.ndarray, fs: int, subtype: str = "FLOAT") -> None:
+    """Write ``audio`` [T] or [T, C] as a WAV file, atomically (temporary name, then
+    rename: a failed write leaves no truncated file under ``path``) and reproducibly
+    (the same samples give the same bytes)."""
+    tmp = f"{path}.part"
+    try:
+        sf.write(tmp, audio, fs, subtype=subtype, format="WAV")
+        _zero_peak_timestamp(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def _zero_peak_timestamp(path) -> None:
+    """Zero the time stamp of a WAV file's PEAK chunk, if it has one.
+
+    libsndfile adds a PEAK chunk (version u32, time stamp u32, then per-channel peaks)
+    to float WAV files, stamped with the wall-clock time of writing; zeroing it makes
+    the file a pure function of its samples. Walks the RIFF chunk list: 4-byte id,
+    u32 little-endian size, data padded to an even length.
+    """
+    with open(path, "r+b") as f:
+        head = f.read(12)
+        if head[:4] != b"RIFF" or head[8:12] != b"WAVE":
+            return
+        while True:
+            chunk = f.read(8)
+            if len(chunk) < 8:
+                return
+            size = int.from_bytes(chunk[4:], "little")
+            if chunk[:4] == b"PEAK" and size >= 8:
+                f.seek(4, os.SEEK_CUR)
+                f.write(b"\0\0\0\0")
+                return
+            f.seek(size + (size & 1), os.SEEK_CUR)

@@ -26,8 +26,8 @@ import json
 import os
 
 import numpy as np
-import soundfile as sf
 
+from .audio import save_wav
 from .choices import WavSubtype, values
 from .errors import DatasetError, TselError
 from .store.reader import list_splits, open_dataset
@@ -103,7 +103,7 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
                 if subtype != "FLOAT" and peak >= 1.0:
                     raise DatasetError(f"{scene.scene_id}: peak {peak:.3f} would clip in {subtype}; "
                                        f"export with --subtype FLOAT")
-                sf.write(os.path.join(audio_dir, name + ".wav"), scene.audio.T, scene.fs, subtype=subtype)
+                save_wav(os.path.join(audio_dir, name + ".wav"), scene.audio.T, scene.fs, subtype=subtype)
                 rows = dcase_rows(scene)
                 with open(os.path.join(meta_dir, name + ".csv"), "w", newline="", encoding="utf-8") as f:
                     csv.writer(f, lineterminator="\n").writerows(rows)

@@ -12,6 +12,7 @@ import textwrap
 
 import numpy as np
 
+from .audio import save_wav
 from .errors import DatasetError, TselError
 from .features import stft
 from .geometry import array_to_room, sph_to_cart
@@ -103,12 +104,10 @@ def summary(scene: Scene) -> str:
 
 def write_wav(scene: Scene, path: str, subtype: str = "FLOAT") -> str:
     """Write the mixture [C, T] as a WAV file (float32 by default, nothing clipped)."""
-    import soundfile as sf
-
     if scene.audio is None:
         raise TselError(f"{scene.scene_id}: read with audio=False; no audio to write")
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    sf.write(path, scene.audio.T, scene.fs, subtype=subtype)
+    save_wav(path, scene.audio.T, scene.fs, subtype=subtype)
     return path
 
 

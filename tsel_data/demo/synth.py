@@ -36,8 +36,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-import soundfile as sf
 
+from ..audio import save_wav
 from ..errors import ConfigError
 from .sounds import SOUND_TYPES, SoundType
 
@@ -154,36 +154,8 @@ def render_clip(spec: ClipSpec, seed: int, types=SOUND_TYPES) -> np.ndarray:
     return y.astype(np.float32)
 
 
-def _zero_peak_timestamp(path: Path) -> None:
-    """Zero the time stamp of a WAV file's PEAK chunk, if it has one.
-
-    libsndfile adds a PEAK chunk (version u32, time stamp u32, then per-channel peaks)
-    to float WAV files, stamped with the wall-clock time of writing; zeroing it makes
-    the file a pure function of its samples. Walks the RIFF chunk list: 4-byte id,
-    u32 little-endian size, data padded to an even length.
-    """
-    with open(path, "r+b") as f:
-        head = f.read(12)
-        if head[:4] != b"RIFF" or head[8:12] != b"WAVE":
-            return
-        while True:
-            chunk = f.read(8)
-            if len(chunk) < 8:
-                return
-            size = int.from_bytes(chunk[4:], "little")
-            if chunk[:4] == b"PEAK" and size >= 8:
-                f.seek(4, os.SEEK_CUR)
-                f.write(b"\0\0\0\0")
-                return
-            f.seek(size + (size & 1), os.SEEK_CUR)
-
-
 def _write_wav(path: Path, audio: np.ndarray, fmt: ClipFormat) -> None:
-    """Write atomically (temporary name, then rename) and reproducibly."""
-    tmp = path.with_name(path.name + ".part")
-    sf.write(tmp, audio, fmt.fs, subtype=fmt.subtype, format="WAV")
-    _zero_peak_timestamp(tmp)
-    os.replace(tmp, path)
+    save_wav(path, audio, fmt.fs, subtype=fmt.subtype)
 
 
 def _write_text(path: Path, text: str) -> None:
