@@ -32,10 +32,9 @@ from .recipe import SceneRecipe
 from .render import render_scene
 from .store.dataset import dataset_doc, shard_attrs
 from .store.layout import Layout
-from .store.plans import (ShardTask, has_plan, read_plan_doc, read_split_plan, shard_complete, shard_tasks,
+from .store.plans import (ShardTask, has_plan, plan_doc, read_plan_doc, read_split_plan, shard_complete, shard_tasks,
                           stored_config)
 from .store.writer import shard_entry, write_error, write_json, write_lines, write_shard
-from .version import __version__
 
 
 # --- plan ----------------------------------------------------------------------------------
@@ -99,8 +98,7 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
         lines = plan_split_json(cfg, split, CatalogView(catalog.clips[split], bank_path), workers) if sp.count else []
         write_lines(layout.plan_file(split), lines)
         counts[split] = len(lines)
-    doc = {"tool": "tsel-data", "version": __version__, "config": cfg.to_dict(),
-           "clips": {s: len(c) for s, c in catalog.clips.items()}, "bad_clips": len(catalog.bad)}
+    doc = plan_doc(cfg.to_dict(), {s: len(c) for s, c in catalog.clips.items()}, len(catalog.bad))
     write_json(layout.config_file, doc)  # last: its presence means the plan is complete
     return counts
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from ..errors import DatasetError
 from ..recipe import SceneRecipe, read_plan
+from ..version import __version__
 from .layout import CONFIG_FILE, Layout, shard_names
 
 
@@ -45,6 +46,12 @@ def shard_complete(layout: Layout, task: ShardTask) -> bool:
     HDF5 file last, so then the shard is whole)."""
     h5, js = layout.shard_files(task.split, task.shard)
     return os.path.isfile(h5) and os.path.isfile(js)
+
+
+def plan_doc(config: dict, clips: dict[str, int], bad_clips: int) -> dict:
+    """The document of ``plan/config.json``: tool, version, the resolved config as plain
+    data, usable clips per split and the number of bad clips."""
+    return {"tool": "tsel-data", "version": __version__, "config": config, "clips": clips, "bad_clips": bad_clips}
 
 
 def has_plan(layout: Layout) -> bool:
