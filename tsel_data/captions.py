@@ -30,3 +30,11 @@ def jaccard(a: frozenset, b: frozenset) -> float:
 def max_similarity(query: frozenset, others) -> float:
     """Highest similarity between a query's tokens and any of ``others`` (token sets)."""
     return max((jaccard(query, o) for o in others), default=0.0)
+
+
+def answerable_queries(target_captions, other_captions, max_sim: float) -> list[str]:
+    """The target's captions that describe it and not the other sources: those whose
+    similarity to every caption of every other source is at most ``max_sim`` (the guard
+    the planner applies to the query it draws, ``scene.caption_similarity``)."""
+    others = [tokens(c) for caps in other_captions for c in caps]
+    return [c for c in target_captions if max_similarity(tokens(c), others) <= max_sim]

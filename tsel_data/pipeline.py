@@ -21,13 +21,12 @@ import time
 import h5py
 from tqdm import tqdm
 
-from .banks.scenes import resolve_bank
-from .catalog import build_catalog, resolve_corpus_dir, write_bad_clips
-from .config import Config, parse_config, rooms_without_bank
+from .catalog import write_bad_clips
+from .config import Config, parse_config
 from .errors import DatasetError
 from .executors import Runner
 from .h5str import as_strs
-from .plan import CatalogView, bank_request, plan_split_json
+from .plan import plan_split_json, prepare_views
 from .recipe import SceneRecipe
 from .render import render_scene
 from .store.dataset import dataset_doc, shard_attrs
@@ -83,19 +82,15 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
             raise DatasetError(f"{out_dir} was planned with a different config; --resume needs the same "
                                f"config, seed and splits (compare with {layout.config_file})")
         return {s: sp.count for s, sp in cfg.splits.items()}
-    problem = rooms_without_bank(cfg)
-    if problem:
-        raise problem
     try:
         os.makedirs(layout.plan_dir, exist_ok=True)
     except OSError as e:
         raise write_error(out_dir, e, out_dir) from None
-    catalog = build_catalog(cfg, resolve_corpus_dir(cfg, layout.demo_corpus), workers=workers)
-    bank_path = resolve_bank(bank_request(cfg), layout.demo_bank)
+    catalog, views = prepare_views(cfg, layout, workers)
     write_bad_clips(layout.bad_clips_file, catalog.bad)
     counts = {}
     for split, sp in cfg.splits.items():
-        lines = plan_split_json(cfg, split, CatalogView(catalog.clips[split], bank_path), workers) if sp.count else []
+        lines = plan_split_json(cfg, split, views[split], workers) if sp.count else []
         write_lines(layout.plan_file(split), lines)
         counts[split] = len(lines)
     doc = plan_doc(cfg.to_dict(), {s: len(c) for s, c in catalog.clips.items()}, len(catalog.bad))

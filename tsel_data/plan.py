@@ -16,15 +16,16 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from .banks.paths import sample_bank_path, sample_bank_point
-from .banks.scenes import BankRequest, open_bank_cached, split_rooms
+from .banks.scenes import BankRequest, open_bank_cached, resolve_bank, split_rooms
 from .captions import max_similarity, tokens
-from .catalog import MIN_CLIPS
+from .catalog import MIN_CLIPS, CatalogScan, build_catalog, resolve_corpus_dir
 from .choices import Motion, Role, Scenario, Spatial
 from .clip import Clip
-from .config import Config
+from .config import Config, rooms_without_bank
 from .errors import GeometryError, TselError
 from .geometry import ArrayPose, Room, frame_centres, interpolate_positions, wrap_azimuth
 from .recipe import BankRef, BankWalk, SceneRecipe, Source
+from .store.layout import Layout
 
 MAX_TRIES = 200
 
@@ -41,6 +42,22 @@ class CatalogView:
         # clips cut from the same recording (AudioCaps: same YouTube video) are one sound source
         self.source_key = [c.meta.get("youtube_id") or c.audio for c in clips]
         self.bank_path = bank_path
+
+
+def prepare_views(cfg: Config, home: Layout, workers: int = 1) -> tuple[CatalogScan, dict[str, CatalogView]]:
+    """Everything planning needs besides the config: the checked catalog and, per split
+    that makes scenes, its :class:`CatalogView` (clips, and the resolved bank).
+
+    ``home`` is where built-in inputs are made once (``builtin:demo`` corpus,
+    ``builtin:demo-bank``): the dataset folder for ``tsel generate``. Raises the first
+    problem of the corpus or the bank.
+    """
+    problem = rooms_without_bank(cfg)
+    if problem:
+        raise problem
+    catalog = build_catalog(cfg, resolve_corpus_dir(cfg, home.demo_corpus), workers=workers)
+    bank_path = resolve_bank(bank_request(cfg), home.demo_bank)
+    return catalog, {split: CatalogView(clips, bank_path) for split, clips in catalog.clips.items()}
 
 
 def bank_request(cfg: Config) -> BankRequest:

@@ -109,6 +109,16 @@ class SceneDataset:
         self.channel_names = list(self.doc.channel_names)
         self._reset_handles()
 
+    @property
+    def seed(self) -> int:
+        """The dataset seed."""
+        return int(self.doc.raw.get("seed", 0))
+
+    @property
+    def caption_similarity(self) -> float:
+        """The ambiguity guard the dataset was planned with (``scene.caption_similarity``)."""
+        return float((self.doc.config.get("scene") or {}).get("caption_similarity", 0.5))
+
     # --- process-local state --------------------------------------------------------
     def _reset_handles(self) -> None:
         self._pid = os.getpid()
