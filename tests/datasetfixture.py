@@ -15,7 +15,8 @@ import numpy as np
 from tsel_data.geometry import array_to_room, foa_gains, mic_positions, sph_to_cart, wrap_azimuth
 from tsel_data.store.dataset import dataset_doc, shard_attrs
 from tsel_data.store.records import SceneRecord
-from tsel_data.store.writer import RenderedScene, write_json, write_shard
+from tsel_data.atomic import write_json
+from tsel_data.store.writer import RenderedScene, write_shard
 
 C_SOUND = 343.0
 

@@ -86,7 +86,7 @@ def test_distribution_and_static_per_frame(ds, tmp_path):
     (['{"scene_id": "test-000000"}'], r"p.jsonl:1: give exactly one of"),
     (['{"scene_id": "test-000000", "azimuth": 1}', '{"scene_id": "test-000000", "azimuth": 2}'], "predicted twice"),
     (['{"scene_id": "test-000000", "distribution": [1, 2, 3]}'], "360 numbers"),
-    (['{"scene_id": "test-000000", "azimuth": null}'], "NaN, infinity or null"),
+    (['{"scene_id": "test-000000", "azimuth": null}'], "not strings, booleans or null"),
 ])
 def test_malformed_files_name_the_line(ds, tmp_path, lines, match):
     p = tmp_path / "p.jsonl"

@@ -30,8 +30,9 @@ from tsel_data.config import SECTIONS, TOP_KEYS, SplitConfig, load_config, parse
 from tsel_data.distributions import KINDS
 from tsel_data.errors import ConfigError, DatasetError, GeometryError
 from tsel_data.pipeline import finalize, generate, plan_dataset, render_shards
+from tsel_data import atomic
 from tsel_data.store import writer
-from tsel_data.store.writer import sha256_file
+from tsel_data.store.integrity import sha256_file
 
 BOOT = ("from tsel_data.cli import cli, main\n"
         "if 'check' not in cli.commands:\n"
@@ -46,12 +47,13 @@ def tsel(*args, **kw) -> subprocess.CompletedProcess:
 
 
 def files(d) -> dict:
-    """sha256 of every file under d but the demo corpus and temporary files."""
+    """sha256 of every file under d but the demo corpus, temporary files and shard seals
+    (seals record file times)."""
     out = {}
     for root, _, names in os.walk(d):
         for f in names:
             rel = os.path.relpath(os.path.join(root, f), d)
-            if rel.startswith("demo-corpus") or ".tmp" in f:
+            if rel.startswith("demo-corpus") or ".tmp" in f or f.endswith(".seal.json"):
                 continue
             out[rel] = sha256_file(os.path.join(root, f))
     return out
@@ -323,10 +325,11 @@ def test_full_disk_is_a_clear_error_and_resume_completes(cfg, dataset, tmp_path,
 
         def fsync(fd):
             calls["n"] += 1
-            if calls["n"] == 3:  # shard 0: json + h5 fsyncs; then shard 1's json
+            if calls["n"] == 4:  # shard 0: json, h5 and seal fsyncs; then shard 1's json
                 no_space()
             return real(fd)
         monkeypatch.setattr(writer.os, "fsync", fsync)
+        monkeypatch.setattr(atomic, "_fsync_dir", lambda p: None)
         monkeypatch.setattr(writer, "_fsync_dir", lambda p: None)
         failing = "train/shard-00001.json"
     else:  # the disk fills in the middle of the 2nd shard's HDF5 file
@@ -360,7 +363,7 @@ def test_stale_temporary_files_of_dead_writers_are_removed(tmp_path):
     for pid in (dead_pid, os.getppid(), os.getpid()):
         open(f"{target}.tmp-{pid}", "wb").write(b"x")
     open(str(tmp_path / "shard-00001.h5.tmp-1"), "wb").write(b"other shard")
-    removed = writer.remove_stale_tmp(target)
+    removed = atomic.remove_stale_tmp(target)
     assert sorted(removed) == sorted([f"{target}.tmp-{dead_pid}", f"{target}.tmp-{os.getpid()}"])
     assert os.path.exists(f"{target}.tmp-{os.getppid()}")  # a live writer's file is kept
     assert os.path.exists(str(tmp_path / "shard-00001.h5.tmp-1"))

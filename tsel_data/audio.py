@@ -6,6 +6,7 @@ Resampling is polyphase (``scipy.signal.resample_poly``, Kaiser-windowed FIR), s
 """
 from __future__ import annotations
 
+import errno
 import math
 import os
 from dataclasses import dataclass
@@ -14,17 +15,26 @@ from functools import lru_cache
 import numpy as np
 import soundfile as sf
 
+from .atomic import atomic_output
 from .errors import AudioError
 
 EPS = 1e-12
+# Sample rates a recording can have; a header outside says the file is broken (or not audio).
+MIN_RATE, MAX_RATE = 1000, 768000
+SILENT_PEAK = 1e-5  # -100 dBFS
+RELATIVE_SILENCE = 1e-3  # -60 dB: what a mixdown or the scenes' band keeps of a clip, below which it is gone
 
 
 def load_clip(path: str, fs: int, duration: float, offset: float = 0.0) -> np.ndarray:
     """Mono float32 [round(duration·fs)] at ``fs``: read, downmix, resample, pad with zeros or cut."""
     n_out = int(round(duration * fs))
+    if os.path.exists(path) and not os.path.isfile(path):  # a FIFO would block forever
+        raise AudioError(f"{path} is not a regular file (a pipe, device or socket); point the manifest at an audio file")
     try:
         with sf.SoundFile(path) as f:
             sr = f.samplerate
+            if not MIN_RATE <= sr <= MAX_RATE:
+                raise AudioError(f"{path} declares a sample rate of {sr} Hz; the file is broken or not audio")
             start = int(round(offset * sr))
             if start:
                 f.seek(min(start, f.frames))
@@ -104,13 +114,18 @@ class ClipCheck:
 
 
 def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_channels: int,
-               offset: float = 0.0, duration: float | None = None) -> ClipCheck:
+               offset: float = 0.0, duration: float | None = None, fs: int | None = None) -> ClipCheck:
     """Check a clip at ``level`` = exists | header | full (decode: NaN, silence).
 
-    ``full`` judges silence on the part a scene uses, ``offset`` .. ``offset + duration``
-    (the whole file if ``duration`` is None): a clip silent there would be an inaudible
-    source whose caption still describes it.
+    ``full`` decodes only the part a scene uses, ``offset`` .. ``offset + duration`` (the
+    whole file if ``duration`` is None), and judges it as a scene will hear it: mixed
+    down to mono (a stereo clip whose channels cancel is silent) and, when the scenes'
+    rate ``fs`` is lower than the clip's, in the band below fs/2 (a clip with only
+    ultrasonic content is silent after resampling). A clip silent there would be an
+    inaudible source whose caption still describes it.
     """
+    if os.path.exists(path) and not os.path.isfile(path):
+        return ClipCheck(clip_id, f"{path} is not a regular file (a pipe, device or socket)")
     if not os.path.isfile(path):
         return ClipCheck(clip_id, f"audio file not found: {path}")
     if level == "exists":
@@ -125,24 +140,54 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
     base = dict(duration=dur, samplerate=info.samplerate, channels=info.channels)
     if info.frames == 0:
         return ClipCheck(clip_id, f"empty audio file {path}", **base)
+    if not MIN_RATE <= info.samplerate <= MAX_RATE:
+        return ClipCheck(clip_id, f"{path} declares a sample rate of {info.samplerate} Hz (not {MIN_RATE}-{MAX_RATE} "
+                                  f"Hz): the file is broken or not audio", **base)
     if info.channels > max_channels:
         return ClipCheck(clip_id, f"{path} has {info.channels} channels (more than corpus.max_channels = {max_channels})", **base)
     if dur - offset < min_duration:
         return ClipCheck(clip_id, f"{path} is {dur - offset:.3f} s long (shorter than corpus.min_duration = {min_duration} s)", **base)
     if level == "header":
         return ClipCheck(clip_id, None, **base)
-    try:
-        x, _ = sf.read(path, dtype="float32", always_2d=True)
+    sr = info.samplerate
+    start = int(round(offset * sr))
+    frames = -1 if duration is None else int(round(duration * sr))
+    try:  # only the part a scene uses: a 4 GiB file costs what its 10 s cost
+        used, _ = sf.read(path, start=min(start, info.frames), frames=frames, dtype="float32", always_2d=True)
     except (sf.LibsndfileError, RuntimeError, OSError) as e:
         return ClipCheck(clip_id, f"unreadable audio {path}: {str(e).splitlines()[0]}", **base)
-    if not np.all(np.isfinite(x)):
+    if not np.all(np.isfinite(used)):
         return ClipCheck(clip_id, f"{path} contains NaN or Inf samples", **base)
-    sr = info.samplerate
-    used = x[int(round(offset * sr)):None if duration is None else int(round((offset + duration) * sr))]
-    if used.size == 0 or float(np.max(np.abs(used))) < 1e-5:
-        span = "" if duration is None else f" in the {duration:g} s a scene uses"
+    span = "" if duration is None else f" in the {duration:g} s a scene uses"
+    mono = used.mean(axis=1)
+    if mono.size == 0 or float(np.max(np.abs(mono))) < SILENT_PEAK:
         return ClipCheck(clip_id, f"{path} is silent{span} (peak below -100 dBFS)", **base)
+    loudest = float(np.sqrt(np.max(np.mean(used.astype(np.float64) ** 2, axis=0))))
+    if _rms(mono) < RELATIVE_SILENCE * loudest:
+        return ClipCheck(clip_id, f"{path} is silent{span} once mixed down to mono (its channels cancel: 60 dB "
+                                  f"below the loudest channel)", **base)
+    if fs is not None and sr > fs and _in_band_rms(mono, sr, fs / 2) < RELATIVE_SILENCE * _rms(mono):
+        return ClipCheck(clip_id, f"{path} has no content below {fs / 2:g} Hz{span} (the scenes' band at {fs} Hz): "
+                                  f"it would be silent after resampling", **base)
     return ClipCheck(clip_id, None, **base)
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x.astype(np.float64) ** 2)))
+
+
+def _in_band_rms(x: np.ndarray, sr: int, cutoff: float, n_fft: int = 4096, windows: int = 16) -> float:
+    """RMS of ``x`` below ``cutoff`` Hz, from the power spectra of up to ``windows``
+    evenly spaced Hann windows (a cheap estimate: a full-length FFT per clip would cost
+    more than decoding it)."""
+    if len(x) < n_fft:
+        x = np.pad(x, (0, n_fft - len(x)))
+    starts = np.linspace(0, len(x) - n_fft, min(windows, max(1, len(x) // n_fft))).astype(int)
+    win = np.hanning(n_fft)
+    power = np.mean([np.abs(np.fft.rfft(x[s:s + n_fft] * win)) ** 2 for s in starts], axis=0)
+    band = np.fft.rfftfreq(n_fft, 1.0 / sr) < 0.9 * cutoff  # inside the resampler's pass band
+    share = float(power[band].sum() / max(power.sum(), EPS))
+    return _rms(x) * float(np.sqrt(share))
 
 
 @lru_cache(maxsize=64)
@@ -157,14 +202,12 @@ def save_wav(path, audio: np.ndarray, fs: int, subtype: str = "FLOAT") -> None:
     """Write ``audio`` [T] or [T, C] as a WAV file, atomically (temporary name, then
     rename: a failed write leaves no truncated file under ``path``) and reproducibly
     (the same samples give the same bytes)."""
-    tmp = f"{path}.part"
-    try:
-        sf.write(tmp, audio, fs, subtype=subtype, format="WAV")
+    with atomic_output(os.fspath(path)) as tmp:
+        try:
+            sf.write(tmp, audio, fs, subtype=subtype, format="WAV")
+        except sf.LibsndfileError as e:  # libsndfile's own error for a failed write (full disk, ...)
+            raise OSError(errno.EIO, str(e)) from None
         _zero_peak_timestamp(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
 
 
 def _zero_peak_timestamp(path) -> None:

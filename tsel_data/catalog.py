@@ -13,15 +13,16 @@ from __future__ import annotations
 
 import json
 import os
+import unicodedata
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
+from .atomic import write_lines
 from .audio import ClipCheck, check_clip
 from .clip import Clip
 from .config import Config
 from .errors import AudioError, ConfigError, ManifestError, TselError
 from .manifests import read_manifest
-from .store.writer import write_lines
 
 BUILTIN_DEMO = "builtin:demo"
 MIN_CLIPS = 2  # a scene holds a target and at least one interferer, from different clips
@@ -125,6 +126,7 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1) -> CatalogScan:
                                                f"{e.filename}); check the file"))
             continue
         scan.problems += [ManifestError(m) for m in duplicate_clips(clips, split, seen)]
+        scan.problems += [ManifestError(m) for m in caption_problems(clips)]
         good = []
         for clip, chk in zip(clips, check_clips(clips, cfg, workers)):
             if chk.problem is None:
@@ -189,13 +191,30 @@ def duplicate_clips(clips: list[Clip], split: str, seen: dict) -> list[str]:
     return out
 
 
+def caption_problems(clips: list[Clip]) -> list[str]:
+    """One-line problems for captions that cannot be a query: control characters (a NUL
+    cannot be stored; a newline breaks the one-line formats) or nothing visible (only
+    spaces, zero-width or format characters)."""
+    out = []
+    for c in clips:
+        for k, cap in enumerate(c.captions, 1):
+            bad = sorted({f"U+{ord(ch):04X}" for ch in cap if unicodedata.category(ch) == "Cc"})
+            if bad:
+                out.append(f"{c.origin}: clip {c.id}: caption {k} holds control characters ({', '.join(bad)}); "
+                           f"remove them from the manifest")
+            elif not any(unicodedata.category(ch)[0] in "LNPS" for ch in cap):
+                out.append(f"{c.origin}: clip {c.id}: caption {k} has no visible character; write the caption or "
+                           f"delete it")
+    return out
+
+
 def check_clips(clips: list[Clip], cfg: Config, workers: int = 1) -> list[ClipCheck]:
     """The ``corpus.check`` verdict on every clip, in order."""
     level = cfg.corpus.check
     if level == "none":
         return [ClipCheck(c.id, None) for c in clips]
-    args = [(c.id, c.audio, level, cfg.corpus.min_duration, cfg.corpus.max_channels, c.offset, cfg.audio.duration)
-            for c in clips]
+    args = [(c.id, c.audio, level, cfg.corpus.min_duration, cfg.corpus.max_channels, c.offset, cfg.audio.duration,
+             cfg.audio.fs) for c in clips]
     if workers > 1 and level == "full" and len(clips) > 64:
         with ProcessPoolExecutor(workers) as ex:
             return list(ex.map(_check, args, chunksize=64))

@@ -27,6 +27,7 @@ every active frame.
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,6 +38,7 @@ from .labels import decode_distribution
 from .store.reader import open_dataset
 
 THRESHOLDS = (5.0, 10.0, 20.0)
+MAX_AZIMUTH = 360.0 * 1000  # degrees: any real prediction is far inside; larger ones are unit mistakes
 __all__ = ["PredictionError", "Prediction", "EvalResult", "evaluate", "read_predictions", "parse_prediction",
            "scene_errors", "summarise", "write_predictions"]
 
@@ -90,28 +92,42 @@ class EvalResult:
 def read_predictions(path: str) -> dict[str, Prediction]:
     """Parse a JSONL prediction file (PredictionError naming the line on any problem)."""
     preds: dict[str, Prediction] = {}
+    if os.path.exists(path) and not os.path.isfile(path):  # a FIFO or device would block
+        raise PredictionError(f"{path}: not a regular file; give the prediction file itself")
     try:
-        fh = open(path, encoding="utf-8")
+        with open(path, "rb") as fh:
+            raw_lines = fh.read().split(b"\n")
     except OSError as e:
         raise PredictionError(f"{path}: cannot read prediction file ({e.strerror})") from None
-    with fh:
-        for n, line in enumerate(fh, 1):
-            if not line.strip():
-                continue
-            where = f"{path}:{n}"
-            try:
-                obj = json.loads(line)
-            except json.JSONDecodeError as e:
-                raise PredictionError(f"{where}: not valid JSON ({e.msg})") from None
-            p = parse_prediction(obj, where)
-            p.line = n
-            if p.scene_id in preds:
-                raise PredictionError(f"{where}: scene {p.scene_id!r} predicted twice (first on line "
-                                      f"{preds[p.scene_id].line}); keep one line per scene")
-            preds[p.scene_id] = p
+    for n, raw in enumerate(raw_lines, 1):
+        if not raw.strip():
+            continue
+        where = f"{path}:{n}"
+        try:
+            line = raw.decode("utf-8")
+        except UnicodeDecodeError as e:
+            raise PredictionError(f"{where}: not UTF-8 (invalid byte at offset {e.start}); write the file as "
+                                  f"UTF-8 JSON Lines") from None
+        try:
+            obj = json.loads(line)
+        except json.JSONDecodeError as e:
+            raise PredictionError(f"{where}: not valid JSON ({e.msg})") from None
+        p = parse_prediction(obj, where)
+        p.line = n
+        if p.scene_id in preds:
+            raise PredictionError(f"{where}: scene {p.scene_id!r} predicted twice (first on line "
+                                  f"{preds[p.scene_id].line}); keep one line per scene")
+        preds[p.scene_id] = p
     if not preds:
         raise PredictionError(f"{path}: no predictions (expected one JSON object per line)")
     return preds
+
+
+def _numeric(v) -> bool:
+    """Numbers, or (nested) lists of numbers; booleans are not numbers here."""
+    if isinstance(v, list):
+        return all(_numeric(x) for x in v)
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 def parse_prediction(obj, where: str = "prediction") -> Prediction:
@@ -121,22 +137,33 @@ def parse_prediction(obj, where: str = "prediction") -> Prediction:
     has_az, has_dist = "azimuth" in obj, "distribution" in obj
     if has_az == has_dist:
         raise PredictionError(f"{where}: give exactly one of \"azimuth\" or \"distribution\"")
+    value = obj["azimuth"] if has_az else obj["distribution"]
+    if not _numeric(value):  # not true, "12" or null: JSON numbers only
+        raise PredictionError(f"{where}: values must be JSON numbers (or lists of them), not strings, booleans "
+                              f"or null")
     try:
-        val = np.asarray(obj["azimuth"] if has_az else obj["distribution"], dtype=np.float64)
+        val = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise PredictionError(f"{where}: values must be numbers (or lists of numbers)") from None
+        raise PredictionError(f"{where}: values must be numbers (or lists of numbers), each list the same "
+                              f"length") from None
     if has_dist:
         if val.ndim not in (1, 2) or val.shape[-1] != 360:
             raise PredictionError(f"{where}: \"distribution\" must be 360 numbers or a list of them per frame, "
                                   f"got shape {list(val.shape)}")
         if not np.isfinite(val).all():
             raise PredictionError(f"{where}: \"distribution\" contains NaN or infinity")
+        if (val.max(axis=-1) <= val.min(axis=-1)).any():  # all equal (e.g. all zero): no argmax to take
+            raise PredictionError(f"{where}: \"distribution\" is flat (every score equal) in a frame; it names no "
+                                  f"azimuth")
         val = decode_distribution(val)
     else:
         if val.ndim > 1 or val.size == 0:
             raise PredictionError(f"{where}: \"azimuth\" must be a number or a list of numbers (one per frame)")
         if not np.isfinite(val).all():
             raise PredictionError(f"{where}: \"azimuth\" contains NaN, infinity or null")
+        if (np.abs(val) > MAX_AZIMUTH).any():  # 1e308 wraps to a number, but not to a prediction
+            raise PredictionError(f"{where}: \"azimuth\" must be degrees within ±{MAX_AZIMUTH:g}, got "
+                                  f"{float(val.flat[np.argmax(np.abs(val))])!r}")
     return Prediction(obj["scene_id"], val)
 
 

@@ -9,13 +9,16 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import os
+import signal
+import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 
 from threadpoolctl import threadpool_limits
 
 from .choices import Executor, values
-from .errors import TselError
+from .errors import DatasetError, TselError
 
 EXECUTORS = values(Executor)
 
@@ -63,8 +66,22 @@ def reuse_freed_memory() -> None:
 _MALLOC_SET = False
 
 
+class Terminated(SystemExit):
+    """SIGTERM reached the main process: leave the run (finished shards are kept)."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated(128 + signal.SIGTERM)
+
+
 class Runner:
-    """Runs ``fn(job)`` for batches of jobs, yielding results as they complete."""
+    """Runs ``fn(job)`` for batches of jobs, yielding results as they complete.
+
+    A local pool's workers never outlive the run: on any exit from the ``with`` block,
+    SIGTERM to the main process included, they are stopped (a worker mid-shard leaves
+    only a temporary file, which the next writer removes). A worker that dies (killed,
+    out of memory) ends the run with one DatasetError line.
+    """
 
     def __init__(self, executor: str = "local", workers: int = 1, scheduler: str | None = None):
         if executor not in EXECUTORS:
@@ -78,8 +95,11 @@ class Runner:
 
     def __enter__(self) -> "Runner":
         self._limits = None
+        self._old_term = None
         if self.executor == "local" and self.workers > 1:
             self._pool = ProcessPoolExecutor(self.workers, initializer=prepare_worker)
+            if threading.current_thread() is threading.main_thread():
+                self._old_term = signal.signal(signal.SIGTERM, _on_sigterm)
         elif self.executor.startswith("dask"):
             try:
                 from dask.distributed import Client, LocalCluster  # optional extra, slow to import
@@ -105,7 +125,14 @@ class Runner:
         if self._limits is not None:
             self._limits.restore_original_limits()
         if self._pool is not None:
+            if exc[0] is not None:
+                # leaving early: do not wait for shards in flight. _processes is the only
+                # handle on the workers ProcessPoolExecutor gives.
+                for p in list((self._pool._processes or {}).values()):
+                    p.terminate()
             self._pool.shutdown(cancel_futures=True)
+            if self._old_term is not None:
+                signal.signal(signal.SIGTERM, self._old_term)
         if self._client is not None:
             self._client.close()
         if self._cluster is not None:
@@ -121,5 +148,14 @@ class Runner:
             futures = self._client.map(fn, jobs, pure=False, retries=2)
             return (f.result() for f in dask_completed(futures))
         if self._pool is not None and len(jobs) > 1:
-            return (f.result() for f in as_completed([self._pool.submit(fn, j) for j in jobs]))
+            return self._results(as_completed([self._pool.submit(fn, j) for j in jobs]))
         return map(fn, jobs)
+
+    @staticmethod
+    def _results(futures) -> Iterator:
+        try:
+            for f in futures:
+                yield f.result()
+        except BrokenProcessPool:
+            raise DatasetError("a worker process died (killed, or out of memory?) while rendering; finished "
+                               "shards are kept: rerun with --resume, with fewer --workers if memory is short") from None

@@ -22,11 +22,12 @@ File names start with ``fold{n}_`` because the DCASE baselines read the fold fro
 from __future__ import annotations
 
 import csv
-import json
+import io
 import os
 
 import numpy as np
 
+from .atomic import write_json, write_text
 from .audio import save_wav
 from .choices import WavSubtype, values
 from .errors import DatasetError, TselError
@@ -105,8 +106,7 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
                                        f"export with --subtype FLOAT")
                 save_wav(os.path.join(audio_dir, name + ".wav"), scene.audio.T, scene.fs, subtype=subtype)
                 rows = dcase_rows(scene)
-                with open(os.path.join(meta_dir, name + ".csv"), "w", newline="", encoding="utf-8") as f:
-                    csv.writer(f, lineterminator="\n").writerows(rows)
+                write_text(os.path.join(meta_dir, name + ".csv"), _csv(rows))
                 n_rows += len(rows)
                 query_rows.append((fold, split, name, scene.scene_id, scene.query))
                 if progress:
@@ -114,18 +114,20 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
         summary["splits"][split] = {"fold": fold, "scenes": n_scenes, "rows": n_rows, "audio_dir": audio_dir,
                                     "metadata_dir": meta_dir}
         summary["rows"] += n_rows
-    with open(os.path.join(out, "queries.csv"), "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f, lineterminator="\n")
-        w.writerow(("fold", "split", "file", "scene_id", "query"))
-        w.writerows(query_rows)
+    write_text(os.path.join(out, "queries.csv"), _csv([("fold", "split", "file", "scene_id", "query"), *query_rows]))
     info = {"classes": {str(k): v for k, v in CLASSES.items()},
             "folds": {s: v["fold"] for s, v in summary["splits"].items()},
             "format": fmt, "source": os.path.abspath(root),
             "csv_columns": ["frame", "class", "source", "azimuth_deg", "elevation_deg", "distance_cm"],
             "frame_hop_s": 0.1, "wav_subtype": subtype}
-    with open(os.path.join(out, "classes.json"), "w", encoding="utf-8") as f:
-        json.dump(info, f, indent=1)
+    write_json(os.path.join(out, "classes.json"), info)
     return summary
+
+
+def _csv(rows) -> str:
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(rows)
+    return buf.getvalue()
 
 
 def read_dcase_csv(path: str) -> np.ndarray:

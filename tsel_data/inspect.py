@@ -12,6 +12,7 @@ import textwrap
 
 import numpy as np
 
+from .atomic import atomic_output
 from .audio import save_wav
 from .errors import DatasetError, TselError
 from .features import stft
@@ -214,8 +215,11 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
 
     fig.suptitle(textwrap.fill(f"{scene.scene_id}: \u201c{scene.query}\u201d", 110), fontsize=11)
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    fig.savefig(path, dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        with atomic_output(path) as tmp:
+            fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png")
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -16,24 +16,29 @@ Where each file goes is :class:`~tsel_data.store.layout.Layout`'s business.
 from __future__ import annotations
 
 import os
+import shutil
+import sys
 import time
 
 import h5py
 from tqdm import tqdm
 
+from .atomic import write_error, write_json, write_lines
 from .catalog import write_bad_clips
 from .config import Config, parse_config
-from .errors import DatasetError
+from .errors import AudioError, BankError, DatasetError
 from .executors import Runner
+from .geometry import CHANNEL_NAMES
 from .h5str import as_strs
 from .plan import plan_split_json, prepare_views
 from .recipe import SceneRecipe
 from .render import render_scene
-from .store.dataset import dataset_doc, shard_attrs
+from .store.dataset import ShardEntry, dataset_doc, shard_attrs
+from .store.integrity import read_seal, shard_fingerprint, shard_state
 from .store.layout import Layout
-from .store.plans import (ShardTask, has_plan, plan_doc, read_plan_doc, read_split_plan, shard_complete, shard_tasks,
-                          stored_config)
-from .store.writer import shard_entry, write_error, write_json, write_lines, write_shard
+from .store.lock import DatasetLock
+from .store.plans import ShardTask, has_plan, plan_doc, read_plan_doc, read_split_plan, shard_tasks, stored_config
+from .store.writer import write_shard
 
 
 # --- plan ----------------------------------------------------------------------------------
@@ -47,7 +52,7 @@ def planned_with(layout: Layout, cfg: Config) -> str:
     return "same" if stored_config(layout) == cfg.to_dict() else "different"
 
 
-def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False) -> dict:
+def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, force: bool = False) -> dict:
     """Check the corpus and write the plan into ``out_dir``.
 
     Parameters
@@ -59,6 +64,9 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
         Processes for clip checks and planning.
     resume : bool
         Accept an existing plan of the same config (and plan nothing).
+    force : bool
+        Write into a folder that holds files but no tsel-data dataset (files of the same
+        names are replaced); without it such a folder is refused.
 
     Returns
     -------
@@ -68,11 +76,62 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
     Raises
     ------
     DatasetError
-        ``out_dir`` holds a plan (without ``resume``) or a plan of another config.
+        ``out_dir`` holds a plan (without ``resume``), a plan of another config, files
+        that are not a dataset (without ``force``), or another process is writing it.
     TselError
         Any problem of the corpus or the bank (the first; ``tsel check`` lists all).
     """
     layout = Layout(out_dir)
+    check_ownership(layout, force)
+    try:
+        os.makedirs(layout.plan_dir, exist_ok=True)
+    except OSError as e:
+        raise write_error(out_dir, e, out_dir) from None
+    with DatasetLock(layout, exclusive=True, what="plan it"):
+        return _plan_locked(cfg, layout, workers, resume)
+
+
+# Disk per scene beyond the float32 audio: the HDF5 labels (3 float32 + 1 bool per source
+# and frame = 13 bytes), and the JSON record (about 20 bytes per source and frame: three
+# rounded numbers and a bool) plus about 2 kB of metadata.
+LABEL_BYTES_PER_SOURCE_FRAME = 13 + 20
+OVERHEAD_BYTES_PER_SCENE = 2000
+
+
+def estimate_bytes(cfg: Config) -> int:
+    """About how many bytes the dataset's shards take (the most sources a scene can have)."""
+    a = cfg.audio
+    n_scenes = sum(sp.count for sp in cfg.splits.values())
+    frames = int(round(a.duration / a.label_hop))
+    n_src = int((cfg.scene.interferers.bounds or (1, 1))[1]) + 1
+    per_scene = (len(CHANNEL_NAMES[cfg.scene.format]) * int(round(a.duration * a.fs)) * 4
+                 + n_src * frames * LABEL_BYTES_PER_SOURCE_FRAME + OVERHEAD_BYTES_PER_SCENE)
+    return n_scenes * per_scene
+
+
+def check_space(cfg: Config, layout: Layout) -> None:
+    """Refuse, before any work, a dataset the disk cannot hold."""
+    need, free = estimate_bytes(cfg), shutil.disk_usage(layout.root).free
+    if need > free:
+        raise DatasetError(f"the dataset needs about {need / 1e9:.2f} GB but {layout.root} has {free / 1e9:.2f} GB "
+                           f"free; free space, choose another --out, or make fewer scenes")
+
+
+def check_ownership(layout: Layout, force: bool = False) -> None:
+    """Refuse a folder that holds files but no tsel-data dataset, unless ``force``: we
+    write only into our own datasets (or new or empty folders)."""
+    root = layout.root
+    if os.path.isfile(root):
+        raise DatasetError(f"--out {root} is a file; choose a folder")
+    if force or not os.path.isdir(root) or layout.is_ours() or not os.listdir(root):
+        return
+    shown = ", ".join(sorted(os.listdir(root))[:3])
+    raise DatasetError(f"{root} already holds files that are not a tsel-data dataset ({shown}, ...); choose a new or "
+                       f"empty --out, or pass --force to write into it anyway (files of the same names are replaced)")
+
+
+def _plan_locked(cfg: Config, layout: Layout, workers: int, resume: bool) -> dict:
+    out_dir = layout.root
     state = planned_with(layout, cfg)
     if state != "none":
         if not resume:
@@ -82,10 +141,7 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
             raise DatasetError(f"{out_dir} was planned with a different config; --resume needs the same "
                                f"config, seed and splits (compare with {layout.config_file})")
         return {s: sp.count for s, sp in cfg.splits.items()}
-    try:
-        os.makedirs(layout.plan_dir, exist_ok=True)
-    except OSError as e:
-        raise write_error(out_dir, e, out_dir) from None
+    check_space(cfg, layout)
     catalog, views = prepare_views(cfg, layout, workers)
     write_bad_clips(layout.bad_clips_file, catalog.bad)
     counts = {}
@@ -119,23 +175,42 @@ def plan_shard_tasks(cfg: Config, plans: dict[str, list]) -> list[ShardTask]:
 # --- render ----------------------------------------------------------------------------------
 
 
+def shard_inputs(recipes: list[SceneRecipe]) -> list[str]:
+    """Every file a shard's scenes read: their clips and their RIR bank."""
+    return sorted({s.audio for r in recipes for s in r.sources} | {r.bank.path for r in recipes if r.bank})
+
+
+def expected_fingerprint(recipes: list[SceneRecipe]) -> str:
+    """The fingerprint a shard of these recipes must carry, with its inputs as they are now."""
+    return shard_fingerprint([r.to_json() for r in recipes], shard_inputs(recipes))
+
+
 def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attrs: dict) -> int:
-    """Render one shard's recipes and write the shard; returns its scene count."""
+    """Render one shard's recipes and write the shard, sealed with what it was made from;
+    returns its scene count."""
+    fingerprint = expected_fingerprint(recipes)  # before reading anything: a clip changed meanwhile is stale
     scenes = [render_scene(r) for r in recipes]
-    # write_shard's entry (with checksums) is not needed here: finalize makes it, also for
-    # shards other processes wrote
-    write_shard(out_dir, task.split, task.shard, scenes, attrs, checksums=False)
+    write_shard(out_dir, task.split, task.shard, scenes, attrs, fingerprint)
     return len(scenes)
 
 
-def _render_task(args) -> tuple[ShardTask, int]:
+def _render_task(args) -> tuple[ShardTask, int, str]:
+    """One shard; a bad input met only now (a clip or an RIR the checks let through) is
+    reported, not raised, so the other shards go on."""
     out_dir, task, recipes, attrs = args
-    return task, render_shard(out_dir, task, recipes, attrs)
+    try:
+        return task, render_shard(out_dir, task, recipes, attrs), ""
+    except (AudioError, BankError) as e:
+        return task, 0, str(e)
 
 
 def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, progress: bool = True,
                   executor: str = "local", scheduler: str | None = None) -> dict:
     """Render the plan's shards; complete shards are skipped.
+
+    A shard counts as complete only when its seal matches the plan and its files
+    (store/integrity.py): shards of another plan, made from clips that changed since, or
+    damaged, are rendered again (and said so on stderr).
 
     Parameters
     ----------
@@ -156,19 +231,39 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
     -------
     dict
         {split: scenes rendered now}.
+
+    Raises
+    ------
+    DatasetError
+        Shards that could not be rendered (bad clips or RIRs found only now: the first is
+        named; the others were rendered), or another process is planning the folder.
     """
     out_dir = os.path.abspath(out_dir)  # dask workers may run elsewhere on a shared filesystem
     layout = Layout(out_dir)
-    cfg, plans = load_plan(out_dir)
-    tasks = plan_shard_tasks(cfg, plans)
-    if shards is not None:
-        if shards.stop > len(tasks):
-            raise DatasetError(f"shard range {shards.start}-{shards.stop - 1} is outside the plan's "
-                               f"{len(tasks)} shards (0-{len(tasks) - 1})")
-        tasks = [tasks[i] for i in shards]
-    todo = [t for t in tasks if not shard_complete(layout, t)]
+    cfg, plans = load_plan(out_dir)  # a plan is written last by its planner: complete, or absent
+    with DatasetLock(layout, exclusive=False, what="render it"):
+        tasks = plan_shard_tasks(cfg, plans)
+        if shards is not None:
+            if shards.stop > len(tasks):
+                raise DatasetError(f"shard range {shards.start}-{shards.stop - 1} is outside the plan's "
+                                   f"{len(tasks)} shards (0-{len(tasks) - 1})")
+            tasks = [tasks[i] for i in shards]
+        todo, redo = [], []
+        for t in tasks:
+            state, why = shard_state(layout, t.split, t.shard, expected_fingerprint(plans[t.split][t.start:t.stop]))
+            if state != "complete":
+                todo.append(t)
+                if state in ("stale", "damaged"):
+                    redo.append(f"{t.files[0]} ({why})")
+        if redo:
+            print(f"rendering {len(redo)} shard(s) again that do not verify, e.g. {redo[0]}", file=sys.stderr)
+        return _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler)
+
+
+def _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler) -> dict:
     attrs = shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format)
     done: dict[str, int] = {s: 0 for s in plans}
+    failed: list[str] = []
     with Runner(executor, workers if len(todo) > 1 else 1, scheduler) as runner:
         # split by split, so each split gets its own progress bar and rate
         for split in plans:
@@ -177,10 +272,15 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
             if not total:
                 continue
             bar = _bar(split, total, total - sum(j[1].stop - j[1].start for j in jobs), progress)
-            for t, n in runner.map_unordered(_render_task, jobs):
+            for t, n, problem in runner.map_unordered(_render_task, jobs):
                 done[t.split] += n
                 bar.update(n)
+                if problem:
+                    failed.append(f"{t.files[0]}: {problem}")
             bar.close()
+    if failed:
+        raise DatasetError(f"{len(failed)} shard(s) could not be rendered (the others were), e.g. {failed[0]}; fix the "
+                           f"input and rerun with --resume (shards that read a changed clip are rendered again)")
     return done
 
 
@@ -203,35 +303,45 @@ def finalize(out_dir: str) -> dict:
     Raises
     ------
     DatasetError
-        A shard is missing or holds other scenes than the plan puts there.
+        A shard is missing, does not verify (another plan, changed inputs, damaged
+        files), or holds other scenes than the plan puts there.
     """
     layout = Layout(out_dir)
     cfg, plans = load_plan(out_dir)
-    entries: dict[str, list] = {split: [] for split in plans}  # config order
-    missing = []
-    for task in plan_shard_tasks(cfg, plans):
-        h5_rel = task.files[0]
-        if not shard_complete(layout, task):
-            missing.append(h5_rel)
-            continue
-        want = [r.scene_id for r in plans[task.split][task.start:task.stop]]
-        with h5py.File(layout.path(h5_rel), "r") as h:
-            got = as_strs(h["scene_id"][()])
-        if got != want:
-            raise DatasetError(f"{h5_rel} does not hold the planned scenes {want[0]}..{want[-1]}; "
-                               f"delete it and run `tsel render` again")
-        entries[task.split].append(shard_entry(out_dir, task.split, task.shard, len(want)))
-    if missing:
-        raise DatasetError(f"{len(missing)} shard(s) not rendered yet, e.g. {missing[0]}; "
-                           f"run `tsel render {out_dir}` (or `tsel generate ... --resume`) first")
-    doc = dataset_doc(cfg.to_dict(), cfg.seed, shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format),
-                      entries)
-    write_json(layout.dataset_file, doc)
-    return doc
+    with DatasetLock(layout, exclusive=True, what="finalize it"):
+        entries: dict[str, list] = {split: [] for split in plans}  # config order
+        missing, bad = [], []
+        for task in plan_shard_tasks(cfg, plans):
+            recipes = plans[task.split][task.start:task.stop]
+            state, why = shard_state(layout, task.split, task.shard, expected_fingerprint(recipes), deep=True)
+            if state == "missing":
+                missing.append(task.files[0])
+                continue
+            if state != "complete":
+                bad.append(f"{task.files[0]}: {why}")
+                continue
+            want = [r.scene_id for r in recipes]
+            with h5py.File(layout.path(task.files[0]), "r") as h:
+                got = as_strs(h["scene_id"][()])
+            if got != want:  # a sealed shard of this plan holds its scenes; this guards the seal itself
+                bad.append(f"{task.files[0]}: holds scenes other than the planned {want[0]}..{want[-1]}")
+                continue
+            seal = read_seal(layout, task.split, task.shard)
+            entries[task.split].append(ShardEntry(*task.files, len(want), seal.h5.sha256, seal.json.sha256))
+        if bad:
+            raise DatasetError(f"{len(bad)} shard(s) do not verify, e.g. {bad[0]}; run `tsel render {out_dir}` (or "
+                               f"`tsel generate ... --resume`) to render them again")
+        if missing:
+            raise DatasetError(f"{len(missing)} shard(s) not rendered yet, e.g. {missing[0]}; "
+                               f"run `tsel render {out_dir}` (or `tsel generate ... --resume`) first")
+        doc = dataset_doc(cfg.to_dict(), cfg.seed,
+                          shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format), entries)
+        write_json(layout.dataset_file, doc)
+        return doc
 
 
 def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, progress: bool = True,
-             executor: str = "local", scheduler: str | None = None) -> dict:
+             executor: str = "local", scheduler: str | None = None, force: bool = False) -> dict:
     """Plan, render and finalize a dataset (the three stages above, in one call).
 
     Parameters are those of :func:`plan_dataset` and :func:`render_shards`.
@@ -244,7 +354,7 @@ def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, 
         (on disk).
     """
     t0 = time.perf_counter()
-    plan_dataset(cfg, out_dir, workers=workers, resume=resume)
+    plan_dataset(cfg, out_dir, workers=workers, resume=resume, force=force)
     t1 = time.perf_counter()
     rendered = render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
     t2 = time.perf_counter()

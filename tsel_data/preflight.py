@@ -21,17 +21,10 @@ from .banks.scenes import bank_problems, resolve_bank
 from .catalog import BUILTIN_DEMO, resolve_corpus_dir, scan_catalog
 from .config import Config, config_problems, geometry_problems, rooms_without_bank
 from .errors import DatasetError, TselError
-from .geometry import CHANNEL_NAMES
-from .pipeline import planned_with
+from .pipeline import check_ownership, estimate_bytes, planned_with
 from .plan import CatalogView, bank_request, plan_split_json
 from .report import CheckReport
 from .store.layout import Layout
-
-# Disk estimate per scene beyond the float32 audio: the HDF5 labels (3 float32 + 1 bool
-# per source and frame = 13 bytes) and about 2 kB of JSON record and HDF5 overhead.
-LABEL_BYTES_PER_SOURCE_FRAME = 13
-OVERHEAD_BYTES_PER_SCENE = 2000
-
 
 def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan: bool = True) -> CheckReport:
     """Validate a config and everything it reads, before any rendering.
@@ -90,6 +83,11 @@ def _check_out_dir(cfg: Config, out_dir: str, rep: CheckReport) -> None:
                                f"or choose another --out"))
         return
     layout = Layout(out_dir)
+    try:
+        check_ownership(layout)
+    except TselError as e:
+        rep.error(e)
+        return
     state = planned_with(layout, cfg)
     if state == "different":
         rep.error(DatasetError(f"{out_dir} was planned with a different config ({layout.config_file}); choose "
@@ -99,18 +97,12 @@ def _check_out_dir(cfg: Config, out_dir: str, rep: CheckReport) -> None:
     elif state == "same":
         rep.warnings.append(f"{out_dir} holds an unfinished run of this config; `tsel generate ... --resume` "
                             f"continues it")
-    a = cfg.audio
-    n_scenes = sum(sp.count for sp in cfg.splits.values())
-    frames = int(round(a.duration / a.label_hop))
-    n_src = (cfg.scene.interferers.bounds or (1, 1))[1] + 1
-    per_scene = (len(CHANNEL_NAMES[cfg.scene.format]) * int(round(a.duration * a.fs)) * 4
-                 + n_src * frames * LABEL_BYTES_PER_SOURCE_FRAME + OVERHEAD_BYTES_PER_SCENE)
-    need = n_scenes * per_scene
+    need = estimate_bytes(cfg)
     free = shutil.disk_usage(base).free
     rep.facts.update(estimated_bytes=need, free_bytes=free)
-    if need > free:
-        rep.warnings.append(f"the dataset needs about {need / 1e9:.1f} GB but {base} has {free / 1e9:.1f} GB free; "
-                            f"free space or choose another --out (an interrupted run resumes with --resume)")
+    if need > free and state != "same":
+        rep.error(DatasetError(f"the dataset needs about {need / 1e9:.1f} GB but {base} has {free / 1e9:.1f} GB free; "
+                               f"free space, choose another --out, or make fewer scenes"))
 
 
 def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: CheckReport) -> dict:

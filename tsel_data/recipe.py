@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .choices import Role, Scenario, Spatial, values
-from .errors import GeometryError
+from .errors import DatasetError, GeometryError
 from .geometry import FORMATS, ArrayPose, Room, interpolate_positions, room_to_array
 
 SCENARIOS = values(Scenario)
@@ -244,6 +244,19 @@ def _inside(pts, dims, margin: float, what: str) -> None:
 
 
 def read_plan(path) -> list[SceneRecipe]:
-    """Every recipe of a ``plan/{split}.jsonl`` file, in order."""
-    with open(path, encoding="utf-8") as f:
-        return [SceneRecipe.from_json(line) for line in f if line.strip()]
+    """Every recipe of a ``plan/{split}.jsonl`` file, in order (DatasetError naming the
+    line when one is damaged)."""
+    out = []
+    try:
+        with open(path, "rb") as f:
+            for n, raw in enumerate(f, 1):
+                if not raw.strip():
+                    continue
+                try:
+                    out.append(SceneRecipe.from_json(raw.decode("utf-8")))
+                except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
+                    raise DatasetError(f"{path}:{n}: damaged scene recipe ({type(e).__name__}: "
+                                       f"{str(e)[:80]}); plan again into a new --out") from None
+    except OSError as e:
+        raise DatasetError(f"{path}: cannot read the plan ({e.strerror or e}); plan again into a new --out") from None
+    return out

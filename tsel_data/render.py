@@ -20,7 +20,7 @@ from .acoustics import simulate_rirs
 from .audio import active_rms, db, frame_activity, load_clip_cached
 from .banks.scenes import open_bank_cached
 from .choices import Spatial
-from .errors import AudioError
+from .errors import AudioError, BankError
 from .geometry import CHANNEL_NAMES, cart_to_sph, frame_centres
 from .recipe import SceneRecipe, array_frame_position_at
 from .store.records import (LABEL_DECIMALS, ArrayRecord, LevelsRecord, RoomRecord, SceneRecord, SourceRecord,
@@ -142,6 +142,8 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
     target_rms = 10 ** (recipe.target_level_dbfs / 20)
     gains = np.zeros(len(images))
     for k, s in enumerate(recipe.sources):
+        if not np.isfinite(levels[k]) or (levels[k] <= 0 and np.max(np.abs(dry[k])) > 0):
+            _blame_rirs(recipe, k)
         if levels[k] <= 0:
             # a silent source would leave a query describing nothing audible
             raise AudioError(f"{recipe.scene_id}: source {k} ({s.clip_id}, {s.audio}) is silent in the "
@@ -180,6 +182,18 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
         levels=LevelsRecord(recipe.target_level_dbfs, round(peak * norm, 6), round(db(norm), 3)),
     )
     return RenderedScene(recipe.scene_id, recipe.query, mix, az, el, dist, active, mics, record)
+
+
+def _blame_rirs(recipe: SceneRecipe, k: int) -> None:
+    """A sounding clip whose image is NaN or silent: the RIRs are at fault, not the clip."""
+    s = recipe.sources[k]
+    if s.bank is not None:
+        b = s.bank
+        raise BankError(f"{recipe.bank.path}: room {b.room} trajectory {b.trajectory}, RIRs {list(b.indices)[:6]}"
+                        f"{'...' if len(b.indices) > 6 else ''}: NaN, Inf or all zero (scene {recipe.scene_id}, "
+                        f"source {k}); the bank is damaged: re-import it or drop the room")
+    raise BankError(f"{recipe.scene_id}: source {k}'s simulated RIRs are NaN or silent (room {recipe.room}); "
+                    f"this is a simulator failure: report it with the scene's recipe")
 
 
 def _bank(recipe: SceneRecipe):

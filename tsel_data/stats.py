@@ -12,6 +12,7 @@ from collections import Counter
 
 import numpy as np
 
+from .atomic import atomic_output
 from .geometry import azimuth_difference, circular_mean
 from .store.reader import list_splits, open_dataset
 
@@ -192,6 +193,9 @@ def plot_stats(stats: dict, path: str, dpi: int = 100) -> str:
             ax.legend(fontsize=7)
     fig.suptitle("dataset statistics per split (normalised histograms)")
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    try:
+        with atomic_output(path) as tmp:
+            fig.savefig(tmp, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
     return path

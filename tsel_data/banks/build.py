@@ -13,6 +13,8 @@ tails are complete) unless ``rir_seconds`` cuts it.
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from ..acoustics import simulate_rirs
@@ -112,10 +114,12 @@ def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int
     return MemoryBank(fs, fmt, rooms, info, source=f"simulated ({method})")
 
 
-def build_bank(out, format: str = "mic4", n_rooms: int = 2, seed: int = 0, **kwargs):
+def build_bank(out, format: str = "mic4", n_rooms: int = 2, seed: int = 0, overwrite: bool = False, **kwargs):
     """Simulate a bank (:func:`simulate_bank`'s options) and write it to ``out`` (native
-    format). Returns the path."""
+    format; an existing file only with ``overwrite``). Returns the path."""
+    if os.path.exists(out) and not overwrite:  # before hours of simulation, not after
+        raise BankError(f"{out} already exists; choose another --out, or pass --force to replace it")
     bank = simulate_bank(format=format, n_rooms=n_rooms, seed=seed, **kwargs)
     prov = {"builder": "tsel bank build", "seed": int(seed), "n_rooms": int(n_rooms),
             **{k: (list(v) if isinstance(v, tuple) else v) for k, v in kwargs.items() if k != "progress"}}
-    return write_bank(out, bank, provenance=prov)
+    return write_bank(out, bank, provenance=prov, overwrite=overwrite)

@@ -101,58 +101,70 @@ class NativeBank(Bank):
         self._h5.close()
 
 
-def write_bank(path, bank: Bank, rooms=None, provenance: dict | None = None, progress=None) -> Path:
+def write_bank(path, bank: Bank, rooms=None, provenance: dict | None = None, progress=None,
+               overwrite: bool = False) -> Path:
     """Write ``bank`` (any kind) to ``path`` in the native format, one trajectory at a time.
 
     rooms: names or numbers to keep (default all). provenance: JSON-able facts stored
-    in the file (source, command, seed...). Returns the path.
+    in the file (source, command, seed...). overwrite: replace an existing file (refused
+    otherwise). The file is written under a temporary name and renamed when whole; a
+    failed write is one BankError line naming the file. Returns the path.
     """
     path = Path(path)
+    if path.exists() and not overwrite:
+        raise BankError(f"{path} already exists; choose another --out, or pass --force to replace it")
     names = [bank.resolve_room(r) for r in rooms] if rooms else list(bank.rooms)
-    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
-    prov = {"source": str(bank.source), "source_kind": bank.kind, **(provenance or {})}
     try:
-        with h5py.File(tmp, "w", track_order=True) as f:
-            f.attrs["tsel_bank"] = VERSION
-            f.attrs["fs"] = int(bank.fs)
-            f.attrs["format"] = bank.format
-            f.attrs["channel_names"] = json.dumps(list(bank.channel_names))
-            f.attrs["provenance"] = json.dumps(prov, sort_keys=True)
-            top = f.create_group("rooms", track_order=True)
-            for room in names:
-                trajs = bank.trajectories(room)
-                n = sum(len(t) for t in trajs)
-                if n == 0:
-                    continue
-                # The longest RIR sets the room's length (shorter ones are zero-padded).
-                heads = [bank.read(room, t.id, [0]).shape[1:] for t in trajs]
-                C, L = heads[0][0], max(s[1] for s in heads)
-                g = top.create_group(room)
-                g.attrs["info"] = json.dumps(bank.room_info(room), sort_keys=True)
-                rirs = g.create_dataset("rirs", (n, C, L), dtype="f4", chunks=(1, C, L), track_times=False)
-                pos = np.zeros((n, 3))
-                off = [0]
-                for t in trajs:
-                    a = off[-1]
-                    data = bank.read(room, t.id, np.arange(len(t)))
-                    if data.shape[1:] != (C, L):
-                        data = _fit(data, C, L, f"{room}/{t.id}")
-                    rirs[a : a + len(t)] = data
-                    pos[a : a + len(t)] = t.positions
-                    off.append(a + len(t))
-                    if progress:
-                        progress(room, t)
-                g.create_dataset("positions", data=pos, track_times=False)
-                g.create_dataset("traj_offsets", data=np.asarray(off, dtype=np.int64), track_times=False)
-                g.create_dataset("traj_ids", data=np.array([str(t.id) for t in trajs], dtype=h5py.string_dtype()), track_times=False)
-                g.create_dataset("traj_kinds", data=np.array([t.kind for t in trajs], dtype=h5py.string_dtype()), track_times=False)
-                g.create_dataset("traj_closed", data=np.array([t.closed for t in trajs], dtype=bool), track_times=False)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        _write(tmp, bank, names, provenance, progress)
         os.replace(tmp, path)
+    except (OSError, RuntimeError) as e:  # h5py reports some write failures as RuntimeError
+        why = getattr(e, "strerror", None) or str(e).splitlines()[0]
+        raise BankError(f"cannot write {path}: {why}; free space or choose another --out") from None
     finally:
         if tmp.exists():
             tmp.unlink()
     return path
+
+
+def _write(tmp: Path, bank: Bank, names: list, provenance: dict | None, progress) -> None:
+    prov = {"source": str(bank.source), "source_kind": bank.kind, **(provenance or {})}
+    with h5py.File(tmp, "w", track_order=True) as f:
+        f.attrs["tsel_bank"] = VERSION
+        f.attrs["fs"] = int(bank.fs)
+        f.attrs["format"] = bank.format
+        f.attrs["channel_names"] = json.dumps(list(bank.channel_names))
+        f.attrs["provenance"] = json.dumps(prov, sort_keys=True)
+        top = f.create_group("rooms", track_order=True)
+        for room in names:
+            trajs = bank.trajectories(room)
+            n = sum(len(t) for t in trajs)
+            if n == 0:
+                continue
+            # The longest RIR sets the room's length (shorter ones are zero-padded).
+            heads = [bank.read(room, t.id, [0]).shape[1:] for t in trajs]
+            C, L = heads[0][0], max(s[1] for s in heads)
+            g = top.create_group(room)
+            g.attrs["info"] = json.dumps(bank.room_info(room), sort_keys=True)
+            rirs = g.create_dataset("rirs", (n, C, L), dtype="f4", chunks=(1, C, L), track_times=False)
+            pos = np.zeros((n, 3))
+            off = [0]
+            for t in trajs:
+                a = off[-1]
+                data = bank.read(room, t.id, np.arange(len(t)))
+                if data.shape[1:] != (C, L):
+                    data = _fit(data, C, L, f"{room}/{t.id}")
+                rirs[a : a + len(t)] = data
+                pos[a : a + len(t)] = t.positions
+                off.append(a + len(t))
+                if progress:
+                    progress(room, t)
+            g.create_dataset("positions", data=pos, track_times=False)
+            g.create_dataset("traj_offsets", data=np.asarray(off, dtype=np.int64), track_times=False)
+            g.create_dataset("traj_ids", data=np.array([str(t.id) for t in trajs], dtype=h5py.string_dtype()), track_times=False)
+            g.create_dataset("traj_kinds", data=np.array([t.kind for t in trajs], dtype=h5py.string_dtype()), track_times=False)
+            g.create_dataset("traj_closed", data=np.array([t.closed for t in trajs], dtype=bool), track_times=False)
 
 
 def _fit(data: np.ndarray, C: int, L: int, where: str) -> np.ndarray:

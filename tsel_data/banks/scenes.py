@@ -141,10 +141,36 @@ def bank_problems(req: BankRequest) -> list[TselError]:
             except ConfigError as e:
                 out.append(e)
         for room in used:
-            e = _room_positions_problem(bank, room)
+            e = _room_positions_problem(bank, room) or _room_rirs_problem(bank, room)
             if e:
                 out.append(e)
     return out
+
+
+RIR_SAMPLES_PER_TRAJECTORY = 8  # RIRs read per trajectory to judge a room (a damaged bank is damaged throughout)
+
+
+def _room_rirs_problem(bank, room: str) -> TselError | None:
+    """RIRs that would make silent or NaN scenes: empty, non-finite or all zero, judged on
+    a few RIRs spread along every trajectory (render names any the sample missed)."""
+    for t in bank.trajectories(room):
+        idx = np.unique(np.linspace(0, len(t) - 1, min(len(t), RIR_SAMPLES_PER_TRAJECTORY)).astype(int))
+        try:
+            rirs = bank.read(room, t.id, idx)
+        except TselError as e:
+            return e
+        where = f"{bank.source}: room {room} trajectory {t.id}"
+        if rirs.shape[-1] == 0:
+            return BankError(f"{where}: the RIRs are empty (length 0); re-import the bank or drop the room")
+        finite = np.isfinite(rirs).all(axis=(1, 2))
+        if not finite.all():
+            return BankError(f"{where}: RIR {int(idx[np.argmin(finite)])} holds NaN or Inf; re-import the bank or drop "
+                             f"the room")
+        silent = ~np.any(rirs != 0, axis=(1, 2))
+        if silent.any():
+            return BankError(f"{where}: RIR {int(idx[np.argmax(silent)])} is all zero; re-import the bank or drop the "
+                             f"room")
+    return None
 
 
 def _room_positions_problem(bank, room: str) -> TselError | None:

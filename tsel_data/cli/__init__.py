@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 
 import click
+from click.exceptions import NoArgsIsHelpError
 
 from ..errors import TselError
 from .bank import bank
@@ -39,16 +40,32 @@ def main(argv=None) -> None:
     try:
         rc = cli.main(args=argv, prog_name="tsel", standalone_mode=False)
     except TselError as e:
-        click.echo(f"error: {e}", err=True)
-        sys.exit(2)
+        _fail(str(e))
+    except NoArgsIsHelpError as e:  # `tsel` or `tsel bank` alone: the help is the answer
+        click.echo(e.format_message())
+        sys.exit(0)
+    except click.UsageError as e:
+        # click prints Usage / Try / Error on three lines; one line, with where to look
+        ctx = e.ctx
+        cmd = ctx.command_path if ctx is not None else "tsel"
+        _fail(f"{e.format_message()} (see `{cmd} --help`)")
     except click.ClickException as e:
-        e.show()
-        sys.exit(e.exit_code)
+        _fail(e.format_message(), e.exit_code)
     except click.Abort:
         click.echo("aborted", err=True)
         sys.exit(130)
     except OSError as e:
         # full disk, unwritable output: say which file, no traceback
-        click.echo(f"error: {e.strerror or e}: {e.filename or ''}".rstrip(": "), err=True)
-        sys.exit(2)
+        _fail(f"{e.strerror or e}: {e.filename or ''}".rstrip(": "))
     sys.exit(rc if isinstance(rc, int) else 0)
+
+
+def _fail(message: str, code: int = 2) -> None:
+    """One line on stderr, whatever the message holds (names with newlines are escaped)."""
+    click.echo(f"error: {one_line(message)}", err=True)
+    sys.exit(code)
+
+
+def one_line(text: str) -> str:
+    """``text`` with control characters escaped (\\n, \\t, \\x1b ...), so it prints as one line."""
+    return "".join(c if c.isprintable() or c == " " else c.encode("unicode_escape").decode("ascii") for c in text)

@@ -36,13 +36,15 @@ def import_group():
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="Bank file to write (.h5).")
 @click.option("--rooms", multiple=True, help="Rooms to keep, by name or number (e.g. '1,2,tc352'); default all.")
 @click.option("--format", "fmt", type=click.Choice(["foa", "mic"]), default="foa", show_default=True, help="Which TAU format to import (mic = tetrahedral).")
-def import_tau(src, out, rooms, fmt):
+@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+def import_tau(src, out, rooms, fmt, force):
     """Import the TAU-SRIR DB as distributed (reads each trajectory once, never a whole file)."""
     from ..banks.native import write_bank
 
     with open_bank(src, kind="tau", format=fmt) as b:
         path = write_bank(out, b, rooms=_rooms(rooms), provenance={"importer": "tsel bank import tau"},
-                          progress=lambda room, t: click.echo(f"  {room} {t.id}: {len(t)} RIRs", err=True))
+                          progress=lambda room, t: click.echo(f"  {room} {t.id}: {len(t)} RIRs", err=True),
+                          overwrite=force)
     click.echo(f"wrote {path}")
 
 
@@ -52,13 +54,15 @@ def import_tau(src, out, rooms, fmt):
 @click.option("--format", "fmt", type=click.Choice(["foa", "mic", "tetra", "mic4"]), default=None, help="Array format, if the files do not say (SpatialScaper's _foa/_mic suffix does).")
 @click.option("--rooms", multiple=True, help="Rooms to keep (default all).")
 @click.option("--grouping", type=click.Choice(["auto", "rings", "runs"]), default="auto", show_default=True, help="How positions are grouped into trajectories (docs/banks.md).")
-def import_sofa(files, out, fmt, rooms, grouping):
+@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+def import_sofa(files, out, fmt, rooms, grouping, force):
     """Import SOFA SingleRoomSRIR files (one room each), e.g. SpatialScaper's <room>_foa.sofa."""
     from ..banks.native import write_bank
     from ..banks.sofa import SofaBank
 
     with SofaBank(list(files) if len(files) > 1 else files[0], format=fmt, grouping=grouping) as b:
-        path = write_bank(out, b, rooms=_rooms(rooms), provenance={"importer": "tsel bank import sofa"})
+        path = write_bank(out, b, rooms=_rooms(rooms), provenance={"importer": "tsel bank import sofa"},
+                          overwrite=force)
     click.echo(f"wrote {path}")
 
 
@@ -102,7 +106,8 @@ def info(path, fmt, show_traj, as_json):
 @click.option("--rir-seconds", type=float, default=None, help="Cut RIRs to this length (default: full decay).")
 @click.option("--demo", is_flag=True, help="The demo bank (4 rooms, 2 rings x 2 heights, 10 deg steps): the "
               "demo-moving preset's builtin:demo-bank.")
-def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side, method, rir_seconds, demo):
+@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side, method, rir_seconds, demo, force):
     """Simulate a bank in the TAU-SRIR DB's shape: circular trajectories around the array."""
     from ..banks.build import DEMO, build_bank
 
@@ -120,5 +125,5 @@ def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side,
                             f"{', '.join(given)} or --demo")
         kw.update({k: v for k, v in DEMO.items() if k != "n_rooms"})
         n_rooms = DEMO["n_rooms"]
-    path = build_bank(out, format=fmt, n_rooms=n_rooms, seed=seed, **kw)
+    path = build_bank(out, format=fmt, n_rooms=n_rooms, seed=seed, overwrite=force, **kw)
     click.echo(f"wrote {path}")

@@ -12,16 +12,17 @@ from .options import config_options, executor_options, load, worker_count
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
 @click.option("--resume", is_flag=True, help="Continue an interrupted run in --out.")
+@click.option("--force", is_flag=True, help="Write into a folder that holds other files (not a tsel-data dataset).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 @executor_options
-def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, resume, quiet,
-                 executor, scheduler):
+def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, resume, force,
+                 quiet, executor, scheduler):
     """Plan, render and finalize a dataset in one go."""
     from ..pipeline import generate
 
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
     s = generate(cfg, out_dir, workers=worker_count(workers), resume=resume, progress=not quiet, executor=executor,
-                 scheduler=scheduler)
+                 scheduler=scheduler, force=force)
     total = sum(s["splits"].values())
     rate = sum(s["rendered_now"].values()) / s["render_seconds"] if s["render_seconds"] > 0 else 0.0
     click.echo(f"dataset {cfg.name} in {out_dir}: " + ", ".join(f"{k} {v}" for k, v in s["splits"].items())
@@ -35,13 +36,14 @@ def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides,
 @config_options
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--workers", type=int, default=0, help="Processes for checking clips.")
-def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers):
+@click.option("--force", is_flag=True, help="Write into a folder that holds other files (not a tsel-data dataset).")
+def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, force):
     """Check the corpus and write scene recipes only (plan/{split}.jsonl)."""
     from ..pipeline import plan_dataset
     from ..store.plans import shard_tasks
 
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
-    counts = plan_dataset(cfg, out_dir, workers=worker_count(workers))
+    counts = plan_dataset(cfg, out_dir, workers=worker_count(workers), force=force)
     n_shards = len(shard_tasks(counts, cfg.output.shard_size))
     click.echo("planned " + ", ".join(f"{k} {v}" for k, v in counts.items()) + f" scenes in {n_shards} shards "
                f"(0-{n_shards - 1}) in {out_dir}/plan")

@@ -36,6 +36,11 @@ def _table(specs, default) -> str:
         meaning = m["doc"]
         if m.get("choices"):
             meaning += "; one of " + ", ".join(f"`{c}`" for c in m["choices"])
+        bounds = [f"{op} {m[k]:g}" for k, op in (("ge", "≥"), ("gt", ">"), ("le", "≤"), ("lt", "<")) if m.get(k) is not None]
+        if bounds:
+            meaning += f" ({', '.join(bounds)})"
+        if m.get("integer"):
+            meaning += "; whole numbers"
         rows.append(f"| `{f.name}` | `{shown}` | {m.get('unit') or '—'} | {meaning} |")
     return "\n".join(rows) + "\n"
 

@@ -78,7 +78,11 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
     if seed is not None:
         raw["seed"] = seed
     for name, count in (splits or {}).items():
-        raw.setdefault("splits", {}).setdefault(name, {})["count"] = count
+        table = raw.setdefault("splits", {})
+        if not isinstance(table, dict) or not isinstance(table.setdefault(name, {}), dict):
+            raise ConfigError(f"--split {name}={count}: splits.{name} is set to a value, not a table (from --set or "
+                              f"the config); set splits.{name}.count instead")
+        table[name]["count"] = count
     return parse_config(raw, where=path or (f"preset {preset}" if preset else "config"), validate=validate)
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import fields
 
 from ..distributions import Dist
@@ -23,6 +24,7 @@ from ..geometry import array_radius
 from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
 
 MAX_NUMBER = 1e9  # larger config numbers are typos (seeds excepted)
+SPLIT_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 
 
 # --- raw structure -----------------------------------------------------------------------
@@ -85,6 +87,10 @@ def field_problems(cfg: Config, where: str = "config") -> list[ConfigError]:
         for f in fields(section):
             out += _judge(getattr(section, f.name), f, f"{sec}.{f.name}", where)
     for name, sp in cfg.splits.items():
+        if not isinstance(name, str) or not SPLIT_NAME.fullmatch(name):
+            out.append(ConfigError(f"{where}: split name {name!r} is not a plain name (1-64 letters, digits, _ or -, "
+                                   f"starting with a letter or digit): it names a folder inside --out"))
+            continue
         for f in fields(SplitConfig):
             out += _judge(getattr(sp, f.name), f, f"splits.{name}.{f.name}", where)
     return out
@@ -110,6 +116,10 @@ def _judge_dist(d: Dist, m: dict, key: str, where: str) -> list[ConfigError]:
             return [ConfigError(f"{where}: {key} must be {names} or [\"choose\", [...]] of them, got "
                                 f"{json.dumps(d.to_json())}")]
         return []
+    if m.get("integer") and (d.kind not in ("const", "choose") or not all(
+            isinstance(o, (int, float)) and not isinstance(o, bool) and float(o).is_integer() for o in d.options)):
+        return [ConfigError(f"{where}: {key} is a count: write a whole number or [\"choose\", [whole numbers]], "
+                            f"got {json.dumps(d.to_json())}")]
     if not _bounded(m):
         return []
     b = d.bounds
@@ -120,17 +130,20 @@ def _judge_dist(d: Dist, m: dict, key: str, where: str) -> list[ConfigError]:
     return []
 
 
+_BOUNDS = (("ge", ">="), ("gt", ">"), ("le", "<="), ("lt", "<"))
+
+
 def _bounded(m: dict) -> bool:
-    return any(m.get(k) is not None for k in ("ge", "gt", "le"))
+    return any(m.get(k) is not None for k, _ in _BOUNDS)
 
 
 def _within(v: float, m: dict) -> bool:
     return ((m.get("ge") is None or v >= m["ge"]) and (m.get("gt") is None or v > m["gt"])
-            and (m.get("le") is None or v <= m["le"]))
+            and (m.get("le") is None or v <= m["le"]) and (m.get("lt") is None or v < m["lt"]))
 
 
 def _condition(m: dict) -> str:
-    parts = [f"{op} {m[k]:g}" for k, op in (("ge", ">="), ("gt", ">"), ("le", "<=")) if m.get(k) is not None]
+    parts = [f"{op} {m[k]:g}" for k, op in _BOUNDS if m.get(k) is not None]
     unit = f" {m['unit']}" if m.get("unit") else ""
     why = f" ({m['why']})" if m.get("why") else ""
     return " and ".join(parts) + unit + why
@@ -143,6 +156,9 @@ def cross_field_problems(cfg: Config, where: str = "config") -> list[ConfigError
     """Rules that need more than one field."""
     out: list[ConfigError] = []
     a = cfg.audio
+    if a.label_hop > 0 and a.fs > 0 and a.label_hop * a.fs < 1:
+        out.append(ConfigError(f"{where}: audio.label_hop {a.label_hop} s is shorter than one sample at audio.fs "
+                               f"{a.fs} Hz; a label frame must hold samples"))
     if a.duration > 0 and a.label_hop > 0:
         if a.label_hop > a.duration:
             out.append(ConfigError(f"{where}: audio.label_hop {a.label_hop} s is longer than audio.duration "

@@ -16,22 +16,24 @@ from ..distributions import Dist
 from ..jsonable import jsonable
 
 
-def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, le=None, why: str = "",
+def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, le=None, lt=None, why: str = "",
            path: bool = False):
     """A plain field: ``unit`` (shown in docs and messages), ``choices`` (an enumeration),
-    ``ge``/``gt``/``le`` (bounds), ``why`` (a reason shown when a bound fails), ``path``
-    (resolved against a config file's folder)."""
+    ``ge``/``gt``/``le``/``lt`` (bounds), ``why`` (a reason shown when a bound fails),
+    ``path`` (resolved against a config file's folder)."""
     meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": le,
-            "why": why, "path": path}
+            "lt": lt, "why": why, "path": path}
     if isinstance(default, (tuple, dict)):
         return field(default_factory=lambda: type(default)(default), metadata=meta)
     return field(default=default, metadata=meta)
 
 
-def dist(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, why: str = ""):
-    """A sampled field (a constant or a distribution); bounds apply to every value it can draw."""
+def dist(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, why: str = "",
+         integer: bool = False):
+    """A sampled field (a constant or a distribution); bounds apply to every value it can
+    draw; ``integer``: a count, so a constant or a ``choose`` of whole numbers."""
     meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": None,
-            "why": why, "path": False, "dist": True}
+            "lt": None, "why": why, "path": False, "dist": True, "integer": integer}
     return field(default_factory=lambda: Dist.parse(default, "default"), metadata=meta)
 
 
@@ -72,11 +74,13 @@ class SplitConfig:
 class AudioConfig:
     """Sample rate, length, label frames and levels of every scene."""
 
-    fs: int = option(24000, "sample rate of the scenes (clips are resampled, polyphase)", unit="Hz", ge=8000)
+    fs: int = option(24000, "sample rate of the scenes (clips are resampled, polyphase)", unit="Hz", ge=8000,
+                     le=192000)
     duration: float = option(10.0, "scene length; clips are zero-padded or cut to it", unit="s", gt=0)
     label_hop: float = option(0.1, "label frame hop; `duration` must be a whole number of hops", unit="s", gt=0)
     activity_threshold_db: float = option(-30.0, "a frame is active if its energy is within this of the clip's "
-                                                 "loudest frame", unit="dB")
+                                                 "loudest frame", unit="dB", lt=0.0,
+                                          why="at 0 dB or above only the loudest frame, or none, is active")
     target_level_dbfs: float = option(-25.0, "active-frame RMS of the target's image at the array", unit="dBFS")
 
 
@@ -89,7 +93,8 @@ class SceneConfig:
                           "`two-directional`, or `directional+additive` (the first interferer added to every "
                           "channel unspatialised), or a `choose` of both", choices=Scenario)
     interferers: Dist = dist(1, "interferers per scene (a distribution is allowed); in `directional+additive` the "
-                                "first is additive", unit="sources", ge=1, why="a scene holds at least two sources")
+                                "first is additive", unit="sources", ge=1, why="a scene holds at least two sources",
+                     integer=True)
     tir_db: Dist = dist(["uniform", -5.0, 5.0], "target-to-interferer ratio at the array, per interferer", unit="dB")
     min_separation: float = option(20.0, "minimum azimuth between directional sources", unit="deg")
     separated_frames: float = option(0.8, "fraction of label frames on which `min_separation` must hold; static "
@@ -136,7 +141,7 @@ class RoomConfig:
 class ArrayConfig:
     """Where the array stands in a simulated room."""
 
-    side: Dist = dist(["uniform", 0.10, 0.13], "mic4 side length", unit="m", ge=0.0)
+    side: Dist = dist(["uniform", 0.10, 0.13], "mic4 side length", unit="m", gt=0.0)
     height: Dist = dist(["uniform", 1.0, 1.2], "array centre height above the floor", unit="m", ge=0.0)
     yaw: Dist = dist(["uniform", -180.0, 180.0], "direction of the array's front in the room", unit="deg")
     wall_margin: float = option(1.0, "minimum distance from the array centre to the side walls", unit="m")

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import write_text
 from ..audio import save_wav
 from ..errors import ConfigError
 from .sounds import SOUND_TYPES, SoundType
@@ -159,10 +160,7 @@ def _write_wav(path: Path, audio: np.ndarray, fmt: ClipFormat) -> None:
 
 
 def _write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".part")
-    with open(tmp, "w", encoding="utf-8", newline="") as f:
-        f.write(text)
-    os.replace(tmp, path)
+    write_text(os.fspath(path), text)
 
 
 def _csv_text(rows) -> str:

@@ -49,6 +49,8 @@ def check_file(name: str) -> None:
     if os.path.isdir(name):
         raise fail(name, "is a directory, not a manifest file",
                    "pass the CSV/JSON/JSONL file itself")
+    if not os.path.isfile(name):  # a FIFO or device would block or never end
+        raise fail(name, "is not a regular file (a pipe, device or socket)", "pass the manifest file itself")
 
 
 def read_text(name: str) -> str:
@@ -191,21 +193,25 @@ def pick_split(split: str | None, name: str) -> str | None:
 
 
 def check_template(name: str, template: str, allowed: Sequence[str]) -> None:
-    """Raise unless ``template`` is a str.format pattern using only ``allowed`` fields."""
+    """Raise unless ``template`` is a str.format pattern using only ``allowed`` fields, as
+    they are: no attribute or index access, conversion or format spec (a template is
+    user input; ``{id.__class__}`` or ``{id:>999999999}`` must not run)."""
     listed = ", ".join("{" + a + "}" for a in allowed)
     try:
         parsed = list(string.Formatter().parse(template))
     except ValueError as e:
         raise fail(name, f"bad audio template {template!r} ({e})",
                    f"use fields {listed} and double braces for literal ones") from None
-    for _, field, _, _ in parsed:
+    for _, field, spec, conversion in parsed:
         if field is None:
             continue
-        base = re.split(r"[.\[]", field, maxsplit=1)[0]
-        if base not in allowed:
+        if field not in allowed:
             shown = "{" + field + "}" if field else "{}"
             raise fail(name, f"unknown field {shown} in audio template {template!r}",
                        f"allowed fields: {listed}")
+        if spec or conversion:
+            raise fail(name, f"field {{{field}}} of audio template {template!r} has a format spec or conversion",
+                       f"write the fields plainly: {listed}")
     try:  # catches bad format specs (e.g. {id:d}) before any row is read
         template.format_map({a: "x" for a in allowed})
     except (ValueError, KeyError, IndexError, AttributeError, TypeError) as e:

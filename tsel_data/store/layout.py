@@ -4,7 +4,9 @@
     OUT/plan/config.json        the resolved config the plan was made with
     OUT/plan/{split}.jsonl      one scene recipe per line
     OUT/bad_clips.jsonl         clips skipped by the bad-clip policy
-    OUT/{split}/shard-NNNNN.h5  audio and labels; .json: the same scenes' records
+    OUT/{split}/shard-NNNNN.h5  audio and labels; .json: the same scenes' records;
+                                .seal.json: what the shard was made from, and its checksums
+    OUT/.tsel.lock              the dataset's lock; its presence marks the folder as ours
     OUT/demo-corpus/, OUT/demo-bank.h5   built-in demo inputs, built on first use
 """
 from __future__ import annotations
@@ -18,6 +20,8 @@ CONFIG_FILE = f"{PLAN_DIR}/config.json"
 BAD_CLIPS_FILE = "bad_clips.jsonl"
 DEMO_CORPUS_DIR = "demo-corpus"
 DEMO_BANK_FILE = "demo-bank.h5"
+LOCK_FILE = ".tsel.lock"
+SEAL_SUFFIX = ".seal.json"
 
 
 def shard_names(split: str, shard: int) -> tuple[str, str]:
@@ -70,3 +74,15 @@ class Layout:
         """Full paths of a shard's (HDF5, JSON) files."""
         h5, js = shard_names(split, shard)
         return self.path(h5), self.path(js)
+
+    def seal_file(self, split: str, shard: int) -> str:
+        """Full path of a shard's seal (store/integrity.py)."""
+        return self.path(f"{split}/shard-{shard:05d}{SEAL_SUFFIX}")
+
+    @property
+    def lock_file(self) -> str:
+        return self.path(LOCK_FILE)
+
+    def is_ours(self) -> bool:
+        """Whether the folder holds a tsel-data dataset (finished, planned, or started)."""
+        return any(os.path.exists(p) for p in (self.lock_file, self.config_file, self.dataset_file))

@@ -41,11 +41,11 @@ def shard_tasks(counts: dict[str, int], shard_size: int) -> list[ShardTask]:
     return tasks
 
 
-def shard_complete(layout: Layout, task: ShardTask) -> bool:
-    """Both of a shard's files exist under their final names (the writer renames the
-    HDF5 file last, so then the shard is whole)."""
-    h5, js = layout.shard_files(task.split, task.shard)
-    return os.path.isfile(h5) and os.path.isfile(js)
+def shard_sealed(layout: Layout, task: ShardTask) -> bool:
+    """The shard was written to the end (its files and its seal, written last, exist). Whether it is
+    the shard the plan asks for is :func:`~tsel_data.store.integrity.shard_state`'s question."""
+    return all(os.path.isfile(p) for p in (*layout.shard_files(task.split, task.shard),
+                                           layout.seal_file(task.split, task.shard)))
 
 
 def plan_doc(config: dict, clips: dict[str, int], bad_clips: int) -> dict:

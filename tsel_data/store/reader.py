@@ -124,11 +124,12 @@ class SceneDataset:
         self._pid = os.getpid()
         self._h5: dict[int, h5py.File] = {}
         self._json: dict[int, list[SceneRecord]] = {}
+        self._paired: set[int] = set()  # shards whose HDF5 and JSON files were found to match
         self._ids: dict[str, int] | None = None
 
     def __getstate__(self):
         state = self.__dict__.copy()
-        for k in ("_h5", "_json", "_ids", "_pid"):
+        for k in ("_h5", "_json", "_ids", "_pid", "_paired"):
             state.pop(k, None)
         return state
 
@@ -167,6 +168,18 @@ class SceneDataset:
             self._json[k] = recs
         return recs
 
+    def _check_pair(self, k: int, f: h5py.File, recs: list[SceneRecord]) -> None:
+        """A shard's HDF5 and JSON files hold the same scenes, as many as dataset.json says
+        (swapped or replaced files would pair one scene's audio with another's record)."""
+        ids = list(f["scene_id"].asstr()[:])
+        sh = self.shards[k]
+        if len(ids) != sh.scenes or (self.load_records and [r.scene_id for r in recs] != ids):
+            raise DatasetError(f"{os.path.join(self.root, sh.file)} and {sh.json} do not hold the same scenes as "
+                               f"dataset.json lists ({len(ids)} in the HDF5 file, {sh.scenes} listed); the shard's "
+                               f"files were replaced or mixed up: `tsel check {self.root}` tells which, then render "
+                               f"them again")
+        self._paired.add(k)
+
     def close(self) -> None:
         """Close every open shard of this process."""
         if self._pid == os.getpid():
@@ -203,6 +216,8 @@ class SceneDataset:
         i = self._starts[k] + r
         f = self._file(k)
         recs = self._records(k)
+        if k not in self._paired:
+            self._check_pair(k, f, recs)
         rec = recs[r] if r < len(recs) else None
         lab = f["labels"]
         arrays = {key: lab[key][r] for key in (*LABEL_KEYS, "active")}

@@ -21,10 +21,10 @@ from ..errors import DatasetError, TselError
 from ..h5str import as_str, as_strs
 from ..report import CheckReport
 from .dataset import load_dataset_doc
-from .layout import Layout
-from .plans import has_plan, plan_ids, read_plan_doc, shard_complete, shard_tasks
+from .layout import SEAL_SUFFIX, Layout
+from .plans import has_plan, plan_ids, read_plan_doc, shard_sealed, shard_tasks
 from .records import LABEL_ATOL, LABEL_KEYS, SourceRecord
-from .writer import sha256_file
+from .integrity import sha256_file
 
 
 def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckReport:
@@ -106,7 +106,7 @@ def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckRe
             rel = os.path.relpath(p, out_dir)
             if ".tmp-" in os.path.basename(p):
                 rep.warnings.append(f"{rel}: leftover temporary file of an interrupted write; safe to delete")
-            elif rel not in listed_files and p.endswith((".h5", ".json")):
+            elif rel not in listed_files and p.endswith((".h5", ".json")) and not p.endswith(SEAL_SUFFIX):
                 rep.warnings.append(f"{rel}: not listed in dataset.json; delete it or rerun `tsel finalize {out_dir}`")
     rep.facts["bytes"] = total_bytes
     return rep
@@ -125,7 +125,7 @@ def _report_unfinished(layout: Layout, rep: CheckReport) -> None:
     except (TselError, OSError, ValueError, KeyError, TypeError) as e:
         rep.error(DatasetError(f"{out_dir}: the plan is unreadable ({e}); plan again into a new --out"))
         return
-    done = sum(shard_complete(layout, t) for t in tasks)
+    done = sum(shard_sealed(layout, t) for t in tasks)
     rep.facts["splits"] = {s: {"scenes": n} for s, n in counts.items()}
     rep.error(DatasetError(f"{out_dir}: unfinished dataset (no dataset.json): {done} of {len(tasks)} shards rendered; "
                            f"continue with `tsel generate ... --resume` or `tsel render {out_dir}` then "

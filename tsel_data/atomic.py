@@ -1,0 +1,167 @@
+"""Writing files whole or not at all, and saying in one line why a write failed.
+
+Every file the toolkit writes (shards, plans, ``dataset.json``, exports, pictures, WAVs,
+banks, the demo corpus) goes through here or through the same steps: a temporary name
+``PATH.tmp-PID``, flushed to disk, renamed over ``PATH`` (atomic on POSIX), the folder
+synced. A killed writer leaves only a temporary file, which the next writer of the same
+path removes. A failure (full disk, read-only folder) is one :class:`DatasetError` line
+naming the file; nothing under a final name is ever partial.
+"""
+from __future__ import annotations
+
+import errno
+import glob
+import json
+import os
+from contextlib import contextmanager
+
+from .errors import DatasetError
+from .jsonable import jsonable
+
+
+@contextmanager
+def atomic_output(path: str, what: str | None = None):
+    """``with atomic_output(path) as tmp:`` write ``tmp``; it becomes ``path`` when the
+    block ends without error, and disappears otherwise. Write failures (OSError, and the
+    RuntimeError some libraries raise for a full disk) become one DatasetError line
+    naming ``what`` (default: the path)."""
+    remove_stale_tmp(path)
+    tmp = f"{path}.tmp-{os.getpid()}"
+    try:
+        yield tmp
+        _fsync_file(tmp)
+        os.replace(tmp, path)
+        _fsync_dir(os.path.dirname(path))
+    except (OSError, RuntimeError) as e:
+        if isinstance(e, RuntimeError) and not _looks_like_io(e):
+            raise
+        raise write_error(what or path, e, os.path.dirname(os.path.abspath(path))) from None
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def _looks_like_io(e: Exception) -> bool:
+    text = str(e)
+    return any(m in text for m in ("No space left", "Disk quota", "write failed", "Permission denied",
+                                   "Read-only file system", "errno"))
+
+
+def atomic_write(path: str, data: bytes) -> None:
+    """Write ``data`` to ``path`` whole or not at all: ``path.tmp-PID``, fsync, rename."""
+    tmp = f"{path}.tmp-{os.getpid()}"
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+        _fsync_dir(os.path.dirname(path))
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def write_text(path: str, text: str) -> None:
+    """Write a text file atomically (:func:`atomic_write`), removing temporary files of
+    killed writers first; a failed write is one DatasetError line naming the file."""
+    remove_stale_tmp(path)
+    try:
+        atomic_write(path, text.encode("utf-8"))
+    except OSError as e:
+        raise write_error(os.path.basename(path), e, os.path.dirname(path)) from None
+
+
+def write_json(path: str, doc) -> None:
+    """A JSON document (indent 1, UTF-8; :func:`~tsel_data.jsonable.jsonable` first), atomically."""
+    write_text(path, json.dumps(jsonable(doc), ensure_ascii=False, indent=1) + "\n")
+
+
+def write_lines(path: str, lines) -> None:
+    """One line per item (``lines`` hold no newline), atomically."""
+    write_text(path, "".join(line + "\n" for line in lines))
+
+
+def _fsync_file(path: str) -> None:
+    """Flush a closed file's data to disk, so a rename never exposes unwritten blocks."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_dir(path: str) -> None:
+    """Make a rename durable (POSIX); silently skipped where directories cannot be opened."""
+    try:
+        fd = os.open(path or ".", os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def remove_stale_tmp(path: str) -> list[str]:
+    """Delete ``path.tmp-PID`` files left by killed writers (PID not alive here); returns them.
+
+    A killed run cannot clean up after itself; the next writer of the same file does.
+    Files of live processes are kept (another job may be writing the same shard).
+    """
+    removed = []
+    for tmp in glob.glob(glob.escape(path) + ".tmp-*"):
+        pid = tmp.rsplit(".tmp-", 1)[1]
+        if pid.isdigit() and int(pid) != os.getpid() and _alive(int(pid)):
+            continue
+        try:
+            os.remove(tmp)
+            removed.append(tmp)
+        except FileNotFoundError:
+            pass
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs here. A zombie (killed, not yet reaped: common in
+    containers whose PID 1 reaps slowly) counts as dead: it writes nothing any more."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            state = f.read().rsplit(b")", 1)[1].split()[0]
+        return state not in (b"Z", b"X")
+    except (OSError, IndexError):
+        return True
+
+
+_NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
+_NOT_WRITABLE = (errno.EACCES, errno.EPERM, errno.EROFS)
+
+
+def write_error(what: str, e: OSError, out_dir: str = "") -> DatasetError:
+    """A one-line DatasetError for a failed write (full disk, unwritable folder, ...).
+
+    h5py reports HDF5 failures as OSError without errno; the reason is then read from
+    the message.
+    """
+    text = str(e)
+    where = out_dir or "the output folder"
+    if e.errno in _NO_SPACE or "No space left" in text or "Disk quota" in text:
+        why = (f"no space left on the device; free space (or move {where} elsewhere) and rerun with --resume: "
+               f"finished shards are kept")
+        reason = "disk full"
+    elif e.errno in _NOT_WRITABLE or any(m in text for m in ("Permission denied", "Operation not permitted",
+                                                               "Read-only file system")):
+        why = f"{where} is not writable; fix its permissions or choose another --out"
+        reason = e.strerror or "not writable"
+    else:
+        why = "check the output folder and rerun with --resume"
+        reason = e.strerror or (text.splitlines()[0] if text else type(e).__name__)
+    return DatasetError(f"cannot write {what}: {reason}; {why}")

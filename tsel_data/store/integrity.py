@@ -1,0 +1,126 @@
+"""Knowing that a shard on disk is the one the plan asks for, and whole.
+
+Every shard is sealed by ``{split}/shard-NNNNN.seal.json``, written after its two files:
+
+- ``fingerprint``: what the shard was made from: its recipes as planned, and the size and
+  modification time of every clip and bank file they read (:func:`shard_fingerprint`);
+- ``h5`` and ``json``: size, modification time (ns) and sha256 of each file.
+
+A shard is *complete* when its seal exists, holds the fingerprint the plan asks for now,
+and its files still match the seal. So a shard of another plan, of clips that changed
+since, or with a flipped bit is re-rendered by ``--resume`` and refused by ``finalize``,
+never adopted. The cheap test (size and mtime) runs on resume; ``finalize`` hashes.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+
+from .layout import Layout
+
+SEAL_VERSION = 1
+
+
+def sha256_file(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def input_stats(paths) -> list:
+    """[(path, size, mtime_ns)] of every file read from ``paths`` (a folder: every file in
+    it, recursively), sorted; a missing path is listed with size -1."""
+    out = set()
+    for p in set(paths):
+        if os.path.isdir(p):
+            for root, _, files in os.walk(p):
+                for f in files:
+                    out.add(_stat(os.path.join(root, f)))
+        else:
+            out.add(_stat(p))
+    return sorted(out)
+
+
+def _stat(path: str) -> tuple:
+    try:
+        st = os.stat(path)
+    except OSError:
+        return (path, -1, 0)
+    return (path, st.st_size, st.st_mtime_ns)
+
+
+def shard_fingerprint(recipe_lines, input_paths) -> str:
+    """sha256 of a shard's recipes (their JSON lines, in order) and of the files they read
+    as they are now (:func:`input_stats`)."""
+    doc = {"seal": SEAL_VERSION, "recipes": list(recipe_lines), "inputs": input_stats(input_paths)}
+    return hashlib.sha256(json.dumps(doc, separators=(",", ":")).encode("utf-8")).hexdigest()
+
+
+@dataclass(frozen=True)
+class FileSeal:
+    """What a file was when its shard was sealed."""
+
+    sha256: str
+    size: int
+    mtime_ns: int
+
+    @classmethod
+    def of(cls, path: str, sha256: str | None = None) -> "FileSeal":
+        st = os.stat(path)
+        return cls(sha256 or sha256_file(path), st.st_size, st.st_mtime_ns)
+
+    def unchanged(self, path: str) -> bool:
+        """Same size and modification time (no hashing)."""
+        try:
+            st = os.stat(path)
+        except OSError:
+            return False
+        return st.st_size == self.size and st.st_mtime_ns == self.mtime_ns
+
+
+@dataclass(frozen=True)
+class Seal:
+    fingerprint: str
+    h5: FileSeal
+    json: FileSeal
+
+    def to_json(self) -> dict:
+        return {"seal_version": SEAL_VERSION, "fingerprint": self.fingerprint,
+                "h5": vars(self.h5), "json": vars(self.json)}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "Seal":
+        return cls(str(d["fingerprint"]), FileSeal(**d["h5"]), FileSeal(**d["json"]))
+
+
+def read_seal(layout: Layout, split: str, shard: int) -> Seal | None:
+    """A shard's seal, or None when it is missing or unreadable."""
+    try:
+        with open(layout.seal_file(split, shard), encoding="utf-8") as f:
+            return Seal.from_json(json.load(f))
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def shard_state(layout: Layout, split: str, shard: int, fingerprint: str, deep: bool = False) -> tuple[str, str]:
+    """(state, why) of a shard: ``complete``, ``missing`` (not rendered), ``stale`` (made
+    from another plan or from clips that changed since) or ``damaged`` (its files differ
+    from its seal). ``deep`` hashes both files; otherwise a file whose size and mtime are
+    those of the seal is taken as sealed, and only a changed one is hashed."""
+    h5, js = layout.shard_files(split, shard)
+    have = [os.path.isfile(p) for p in (h5, js)]
+    seal = read_seal(layout, split, shard)
+    if seal is None:
+        return ("missing", "not rendered") if not any(have) else ("damaged", "no seal (an interrupted write)")
+    if seal.fingerprint != fingerprint:
+        return "stale", "made from another plan, or from clips or a bank that changed since"
+    for path, fs in ((h5, seal.h5), (js, seal.json)):
+        if not os.path.isfile(path):
+            return "damaged", f"{os.path.basename(path)} is missing"
+        if (deep or not fs.unchanged(path)) and sha256_file(path) != fs.sha256:
+            return "damaged", f"{os.path.basename(path)} changed since it was written (sha256 differs from its seal)"
+    return "complete", ""
