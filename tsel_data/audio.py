@@ -190,9 +190,19 @@ def _in_band_rms(x: np.ndarray, sr: int, cutoff: float, n_fft: int = 4096, windo
     return _rms(x) * float(np.sqrt(share))
 
 
-@lru_cache(maxsize=64)
 def load_clip_cached(path: str, fs: int, duration: float, offset: float) -> np.ndarray:
-    """load_clip with a small per-process cache: clips recur across a shard's scenes."""
+    """load_clip with a small per-process cache: clips recur across a shard's scenes. A
+    file that changed (size or modification time) is read again."""
+    try:
+        st = os.stat(path)
+        stamp = (st.st_size, st.st_mtime_ns)
+    except OSError:
+        stamp = None  # load_clip says what is wrong
+    return _load_clip_cached(path, stamp, fs, duration, offset)
+
+
+@lru_cache(maxsize=64)
+def _load_clip_cached(path: str, stamp, fs: int, duration: float, offset: float) -> np.ndarray:
     x = load_clip(path, fs, duration, offset)
     x.setflags(write=False)
     return x
