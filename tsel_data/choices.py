@@ -92,6 +92,14 @@ class Executor(StrEnum):
     DASK_LOCAL = "dask-local"
 
 
+class AudioCoding(StrEnum):
+    """How shards store audio (``output.audio``; store/codings.py)."""
+
+    FLOAT32 = "float32"
+    INT16 = "int16"
+    FLAC = "flac"
+
+
 class WavSubtype(StrEnum):
     """WAV sample formats of ``tsel export``."""
 

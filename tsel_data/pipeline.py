@@ -38,7 +38,7 @@ from .store.integrity import read_seal, shard_fingerprint, shard_state
 from .store.layout import Layout
 from .store.lock import DatasetLock
 from .store.plans import ShardTask, has_plan, plan_doc, read_plan_doc, read_split_plan, shard_tasks, stored_config
-from .store.writer import write_shard
+from .store.writer import ShardWriter
 
 
 # --- plan ----------------------------------------------------------------------------------
@@ -189,9 +189,10 @@ def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attr
     """Render one shard's recipes and write the shard, sealed with what it was made from;
     returns its scene count."""
     fingerprint = expected_fingerprint(recipes)  # before reading anything: a clip changed meanwhile is stale
-    scenes = [render_scene(r) for r in recipes]
-    write_shard(out_dir, task.split, task.shard, scenes, attrs, fingerprint)
-    return len(scenes)
+    with ShardWriter(out_dir, task.split, task.shard, len(recipes), attrs, fingerprint) as w:
+        for r in recipes:  # one scene's audio in memory at a time
+            w.add(render_scene(r))
+    return len(recipes)
 
 
 def _render_task(args) -> tuple[ShardTask, int, str]:
@@ -261,7 +262,7 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
 
 
 def _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler) -> dict:
-    attrs = shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format)
+    attrs = shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio)
     done: dict[str, int] = {s: 0 for s in plans}
     failed: list[str] = []
     with Runner(executor, workers if len(todo) > 1 else 1, scheduler) as runner:
@@ -335,7 +336,7 @@ def finalize(out_dir: str) -> dict:
             raise DatasetError(f"{len(missing)} shard(s) not rendered yet, e.g. {missing[0]}; "
                                f"run `tsel render {out_dir}` (or `tsel generate ... --resume`) first")
         doc = dataset_doc(cfg.to_dict(), cfg.seed,
-                          shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format), entries)
+                          shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio), entries)
         write_json(layout.dataset_file, doc)
         return doc
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-from ..choices import (ArrayFormat, BadClipPolicy, CheckLevel, CorpusFormat, Motion, PathKind, RirMethod, Scenario,
-                       values)
+from ..choices import (ArrayFormat, AudioCoding, BadClipPolicy, CheckLevel, CorpusFormat, Motion, PathKind,
+                       RirMethod, Scenario, values)
 from ..distributions import Dist
 from ..jsonable import jsonable
 
@@ -160,8 +160,11 @@ class SourcesConfig:
 class OutputConfig:
     """How scenes are stored."""
 
-    shard_size: int = option(128, "scenes per shard (a 10 s 4-channel 24 kHz scene is 3.84 MB)", unit="scenes",
-                             ge=1)
+    shard_size: int = option(128, "scenes per shard (a 10 s 4-channel 24 kHz float32 scene is 3.84 MB)",
+                             unit="scenes", ge=1)
+    audio: str = option("float32", "how shards store audio: `float32`; `int16` (half the bytes, rounding at about "
+                                   "-101 dBFS); `flac` (lossless over int16, about a third of float32's bytes); every "
+                                   "coding reads back as float32 (docs/format.md)", choices=AudioCoding)
 
 
 @dataclass(frozen=True)

@@ -29,10 +29,14 @@ CONVENTIONS = {
 }
 
 
-def shard_attrs(fs: int, label_hop: float, fmt: str) -> dict:
-    """The attributes of every shard (HDF5 attrs, JSON header) and of ``dataset.json``."""
-    return {"fs": fs, "label_hop": label_hop, "format": fmt, "channel_names": list(CHANNEL_NAMES[fmt]),
-            "format_version": FORMAT_VERSION}
+def shard_attrs(fs: int, label_hop: float, fmt: str, coding: str = "float32") -> dict:
+    """The attributes of every shard (HDF5 attrs, JSON header) and of ``dataset.json``;
+    ``audio_coding`` only when it is not float32 (format version 1's only coding)."""
+    attrs = {"fs": fs, "label_hop": label_hop, "format": fmt, "channel_names": list(CHANNEL_NAMES[fmt]),
+             "format_version": FORMAT_VERSION}
+    if coding != "float32":
+        attrs["audio_coding"] = str(coding)
+    return attrs
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,8 @@ import numpy as np
 from ..errors import DatasetError
 from ..geometry import azimuth_difference, frame_centres
 from ..h5str import as_str
+from ..choices import AudioCoding
+from .codings import coding_of, decode
 from .dataset import DatasetDoc, load_dataset_doc
 from .records import LABEL_KEYS, SceneRecord
 
@@ -79,6 +81,21 @@ class Scene:
         return frame_centres(self.n_frames, self.label_hop)
 
 
+@dataclass
+class _ShardMeta:
+    """What the reader keeps of an open shard: everything but the audio, and its handle."""
+
+    labels: dict
+    mics: np.ndarray
+    queries: list
+    ids: list
+    audio: h5py.Dataset
+    coding: str
+    fs: int
+    label_hop: float
+    format: str
+
+
 class SceneDataset:
     """Random access over the scenes of one split (``len``, ``[i]``, iteration).
 
@@ -123,13 +140,13 @@ class SceneDataset:
     def _reset_handles(self) -> None:
         self._pid = os.getpid()
         self._h5: dict[int, h5py.File] = {}
-        self._json: dict[int, list[SceneRecord]] = {}
-        self._paired: set[int] = set()  # shards whose HDF5 and JSON files were found to match
+        self._json: dict[int, list] = {}  # per shard: the JSON records, parsed on access
+        self._meta: dict[int, _ShardMeta] = {}
         self._ids: dict[str, int] | None = None
 
     def __getstate__(self):
         state = self.__dict__.copy()
-        for k in ("_h5", "_json", "_ids", "_pid", "_paired"):
+        for k in ("_h5", "_json", "_meta", "_ids", "_pid"):
             state.pop(k, None)
         return state
 
@@ -151,7 +168,7 @@ class SceneDataset:
             self._h5[k] = f
         return f
 
-    def _records(self, k: int) -> list[SceneRecord]:
+    def _records(self, k: int) -> list:
         recs = self._json.get(k)
         if recs is None:
             rel = self.shards[k].json
@@ -160,25 +177,49 @@ class SceneDataset:
                 path = os.path.join(self.root, rel)
                 try:
                     with open(path, encoding="utf-8") as fh:
-                        recs = [SceneRecord.from_json(r) for r in json.load(fh).get("scenes", [])]
+                        recs = json.load(fh).get("scenes", [])
                 except FileNotFoundError:
                     raise DatasetError(f"{path}: shard labels missing; regenerate the dataset") from None
-                except json.JSONDecodeError as e:
+                except (json.JSONDecodeError, UnicodeDecodeError) as e:
                     raise DatasetError(f"{path}: not valid JSON ({e})") from None
             self._json[k] = recs
         return recs
 
-    def _check_pair(self, k: int, f: h5py.File, recs: list[SceneRecord]) -> None:
+    def _record(self, k: int, r: int) -> SceneRecord | None:
+        recs = self._records(k)
+        if r >= len(recs):
+            return None
+        if not isinstance(recs[r], SceneRecord):
+            recs[r] = SceneRecord.from_json(recs[r])  # parsed once, when first asked for
+        return recs[r]
+
+    def _shard(self, k: int) -> "_ShardMeta":
+        """Everything of shard k but the audio, read once per process (labels are small)."""
+        f = self._file(k)
+        m = self._meta.get(k)
+        if m is None:
+            lab = f["labels"]
+            m = _ShardMeta(
+                labels={key: lab[key][()] for key in (*LABEL_KEYS, "active")},
+                mics=f["mic_positions"][()].astype(np.float32), queries=list(f["query"].asstr()[()]),
+                ids=list(f["scene_id"].asstr()[()]), audio=f["audio"], coding=coding_of(f["audio"]),
+                fs=int(f.attrs.get("fs", self.fs)), label_hop=float(f.attrs.get("label_hop", self.label_hop)),
+                format=as_str(f.attrs.get("format"), self.format))
+            self._check_pair(k, m.ids)
+            self._meta[k] = m
+        return m
+
+    def _check_pair(self, k: int, ids: list[str]) -> None:
         """A shard's HDF5 and JSON files hold the same scenes, as many as dataset.json says
         (swapped or replaced files would pair one scene's audio with another's record)."""
-        ids = list(f["scene_id"].asstr()[:])
         sh = self.shards[k]
-        if len(ids) != sh.scenes or (self.load_records and [r.scene_id for r in recs] != ids):
+        recs = self._records(k)
+        json_ids = [r.scene_id if isinstance(r, SceneRecord) else r.get("scene_id") for r in recs]
+        if len(ids) != sh.scenes or (self.load_records and json_ids != ids):
             raise DatasetError(f"{os.path.join(self.root, sh.file)} and {sh.json} do not hold the same scenes as "
                                f"dataset.json lists ({len(ids)} in the HDF5 file, {sh.scenes} listed); the shard's "
                                f"files were replaced or mixed up: `tsel check {self.root}` tells which, then render "
                                f"them again")
-        self._paired.add(k)
 
     def close(self) -> None:
         """Close every open shard of this process."""
@@ -214,32 +255,54 @@ class SceneDataset:
         """Scene ``i``; ``audio=False`` skips the audio read (labels and metadata only)."""
         k, r = self.locate(i)
         i = self._starts[k] + r
-        f = self._file(k)
-        recs = self._records(k)
-        if k not in self._paired:
-            self._check_pair(k, f, recs)
-        rec = recs[r] if r < len(recs) else None
-        lab = f["labels"]
-        arrays = {key: lab[key][r] for key in (*LABEL_KEYS, "active")}
+        m = self._shard(k)
+        rec = self._record(k, r)
         # Shards pad S to their largest scene; trim to this scene's own sources.
-        n_src = len(rec.sources) if rec is not None and rec.sources else arrays["azimuth"].shape[0]
-        arrays = {key: a[:n_src] for key, a in arrays.items()}
+        n_src = len(rec.sources) if rec is not None and rec.sources else m.labels["azimuth"].shape[1]
+        lab = m.labels
         return Scene(
-            scene_id=f["scene_id"].asstr()[r],
+            scene_id=m.ids[r],
             split=self.split,
             index=i,
-            query=f["query"].asstr()[r],
-            audio=np.asarray(f["audio"][r], dtype=np.float32) if audio else None,
-            azimuth=arrays["azimuth"].astype(np.float32),
-            elevation=arrays["elevation"].astype(np.float32),
-            distance=arrays["distance"].astype(np.float32),
-            active=arrays["active"].astype(bool),
-            mic_positions=np.asarray(f["mic_positions"][r], dtype=np.float32),
-            fs=int(f.attrs.get("fs", self.fs)),
-            label_hop=float(f.attrs.get("label_hop", self.label_hop)),
-            format=as_str(f.attrs.get("format"), self.format),
+            query=m.queries[r],
+            audio=self._audio(m, r) if audio else None,
+            azimuth=lab["azimuth"][r, :n_src].astype(np.float32),
+            elevation=lab["elevation"][r, :n_src].astype(np.float32),
+            distance=lab["distance"][r, :n_src].astype(np.float32),
+            active=lab["active"][r, :n_src].astype(bool),
+            mic_positions=m.mics[r].copy(),
+            fs=m.fs,
+            label_hop=m.label_hop,
+            format=m.format,
             record=rec,
         )
+
+    @staticmethod
+    def _audio(m: "_ShardMeta", r: int, out: np.ndarray | None = None) -> np.ndarray:
+        if m.coding == AudioCoding.FLOAT32:
+            if out is None:
+                out = np.empty(m.audio.shape[1:], dtype=np.float32)
+            m.audio.read_direct(out, np.s_[r])  # straight into the caller's buffer: no copy
+            return out
+        return decode(m.audio[r], m.coding, out)
+
+    def read_audio(self, indices, out: np.ndarray | None = None) -> np.ndarray:
+        """The audio of several scenes as float32 [B, C, T], into ``out`` when given (a
+        buffer reused across batches saves allocating and zeroing 4 MB per scene)."""
+        indices = list(indices)
+        for b, i in enumerate(indices):
+            k, r = self.locate(int(i))
+            m = self._shard(k)
+            if out is None:
+                out = np.empty((len(indices), *self._audio_shape(m)), dtype=np.float32)
+            self._audio(m, r, out[b])
+        return out
+
+    @staticmethod
+    def _audio_shape(m: "_ShardMeta") -> tuple:
+        if m.coding == AudioCoding.FLAC:
+            return tuple(int(v) for v in m.audio.attrs["audio_shape"])
+        return tuple(m.audio.shape[1:])
 
     def __iter__(self) -> Iterator[Scene]:
         for i in range(len(self)):
@@ -253,7 +316,8 @@ class SceneDataset:
     def records(self) -> Iterator[SceneRecord]:
         """The record of every scene, in order, without opening any HDF5 file (a generator)."""
         for k in range(len(self.shards)):
-            yield from self._records(k)
+            for r in range(len(self._records(k))):
+                yield self._record(k, r)
 
     def scene_ids(self) -> list[str]:
         ids = self._id_index()
@@ -278,7 +342,7 @@ class SceneDataset:
         if self._ids is None:
             ids: dict[str, int] = {}
             for k in range(len(self.shards)):
-                for r, sid in enumerate(self._file(k)["scene_id"].asstr()[:]):
+                for r, sid in enumerate(self._shard(k).ids):
                     ids[sid] = self._starts[k] + r
             self._ids = ids
         return self._ids

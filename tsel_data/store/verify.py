@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import DatasetError, TselError
 from ..h5str import as_str, as_strs
 from ..report import CheckReport
+from .codings import coding_of, decode
 from .dataset import load_dataset_doc
 from .layout import SEAL_SUFFIX, Layout
 from .plans import has_plan, plan_ids, read_plan_doc, shard_sealed, shard_tasks
@@ -54,6 +55,7 @@ def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckRe
         doc = load_dataset_doc(out_dir)
         audio_cfg = doc.config["audio"]
         expect = {"fs": doc.fs, "format": doc.format, "channels": len(doc.channel_names),
+                  "coding": str(doc.raw.get("audio_coding", "float32")),
                   "samples": int(round(audio_cfg["duration"] * audio_cfg["fs"])),
                   "frames": int(round(audio_cfg["duration"] / audio_cfg["label_hop"])), "audio": audio}
     except TselError as e:
@@ -161,8 +163,12 @@ def _check_shard(job) -> list[str]:
 def _compare_shard(h, js: list, entry, ids_planned, expect: dict, fix: str) -> list[str]:
     rel, n = entry.file, entry.scenes
     a = h["audio"]
-    if a.ndim != 3 or a.shape[0] != n or a.shape[1] != expect["channels"] or a.shape[2] != expect["samples"]:
-        return [f"{rel}: audio has shape {a.shape}, expected ({n}, {expect['channels']}, {expect['samples']}); {fix}"]
+    coding = coding_of(a)
+    if coding != expect["coding"]:
+        return [f"{rel}: audio coded as {coding}, dataset.json says {expect['coding']}; {fix}"]
+    shape = (a.shape[0], *(int(v) for v in a.attrs["audio_shape"])) if coding == "flac" else a.shape
+    if len(shape) != 3 or shape[0] != n or shape[1] != expect["channels"] or shape[2] != expect["samples"]:
+        return [f"{rel}: audio has shape {shape}, expected ({n}, {expect['channels']}, {expect['samples']}); {fix}"]
     fmt = as_str(h.attrs.get("format"), None)
     if h.attrs.get("fs") != expect["fs"] or fmt != expect["format"]:
         return [f"{rel}: fs/format attributes ({h.attrs.get('fs')}, {fmt}) differ from "
@@ -198,6 +204,11 @@ def _compare_shard(h, js: list, entry, ids_planned, expect: dict, fix: str) -> l
         jm = (scene.get("array") or {}).get("mic_positions")
         if jm is not None and not np.allclose(mics[i], np.asarray(jm, dtype=np.float64), atol=1e-5):
             return [f"{rel}: scene {sid}: mic positions differ between HDF5 and JSON; {fix}"]
-        if expect["audio"] and not np.all(np.isfinite(a[i])):
-            return [f"{rel}: scene {sid}: audio holds NaN or Inf samples; {fix}"]
+        if expect["audio"]:
+            try:
+                x = decode(a[i], coding)
+            except (RuntimeError, ValueError, OSError) as e:  # a damaged FLAC row
+                return [f"{rel}: scene {sid}: audio does not decode ({e}); {fix}"]
+            if x.shape != (expect["channels"], expect["samples"]) or not np.all(np.isfinite(x)):
+                return [f"{rel}: scene {sid}: audio holds NaN or Inf samples, or decodes to shape {x.shape}; {fix}"]
     return []

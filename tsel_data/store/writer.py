@@ -12,20 +12,22 @@ import hashlib
 import json
 import os
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import h5py
 import numpy as np
 
 from ..atomic import _fsync_dir, _fsync_file, atomic_write, remove_stale_tmp, write_error
 from ..jsonable import jsonable
+from ..choices import AudioCoding
+from .codings import create_audio, encode
 from .dataset import FORMAT_VERSION, ShardEntry
 from .integrity import FileSeal, Seal, sha256_file
 from .layout import Layout, shard_names
 from .records import LABEL_KEYS, SceneRecord
 
-# Space a shard needs beyond its arrays (JSON records, HDF5 metadata), as a fraction: the
-# free-space check before writing leaves this margin (see _check_space).
+# Space a write needs beyond its bytes (HDF5 metadata, the file system), as a fraction:
+# the free-space check before each write leaves this margin (see _check_space).
 SPACE_MARGIN = 0.25
 
 
@@ -40,7 +42,7 @@ class RenderedScene:
 
     scene_id: str
     query: str
-    audio: np.ndarray
+    audio: np.ndarray | None
     azimuth: np.ndarray
     elevation: np.ndarray
     distance: np.ndarray
@@ -51,66 +53,92 @@ class RenderedScene:
 
 def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene], attrs: dict,
                 fingerprint: str = "") -> ShardEntry:
-    """Write one shard atomically and seal it; returns its entry for ``dataset.json``.
+    """Write a shard of scenes already in memory (see :class:`ShardWriter`, which streams)."""
+    with ShardWriter(out_dir, split, shard, len(scenes), attrs, fingerprint) as w:
+        for s in scenes:
+            w.add(s)
+    return w.entry
 
-    attrs: :func:`~tsel_data.store.dataset.shard_attrs`. fingerprint: what the shard was
-    made from (:func:`~tsel_data.store.integrity.shard_fingerprint`), kept in its seal.
-    The JSON file is written first, the HDF5 file second and the seal last, each under a
-    temporary name renamed when whole: a shard is complete exactly when its seal exists
-    and matches (store/integrity.py). A failed write is one DatasetError line naming the
-    file; finished shards are never touched.
+
+class ShardWriter:
+    """Write one shard scene by scene, atomically, and seal it.
+
+    ``with ShardWriter(out_dir, split, shard, n_scenes, attrs, fingerprint) as w:
+    w.add(scene)`` n times; ``w.entry`` is then the shard's entry for ``dataset.json``.
+    Audio goes to the shard's HDF5 file as each scene arrives, so memory holds one
+    scene's audio, not the shard's (labels and records, small, are kept until the end).
+
+    attrs: :func:`~tsel_data.store.dataset.shard_attrs` (``audio_coding`` picks the
+    coding, store/codings.py). fingerprint: what the shard was made from
+    (:func:`~tsel_data.store.integrity.shard_fingerprint`), kept in its seal. The HDF5
+    file is written under a temporary name; at the end the JSON file is written, the HDF5
+    file renamed, and the seal written last, so a shard is complete exactly when its seal
+    exists and matches (store/integrity.py). A failure leaves no file under a final name
+    and is one DatasetError line naming the file; finished shards are never touched.
     """
-    layout = Layout(out_dir)
-    h5_rel, json_rel = shard_names(split, shard)
-    h5_path, json_path = layout.shard_files(split, shard)
-    seal_path = layout.seal_file(split, shard)
-    n_src = max(s.azimuth.shape[0] for s in scenes)
 
-    doc = {"format_version": FORMAT_VERSION, "split": split, "shard": shard, **attrs,
-           "scenes": [s.record for s in scenes]}
-    js = (json.dumps(jsonable(doc), ensure_ascii=False, indent=1) + "\n").encode("utf-8")
-    what = json_rel
-    try:
-        os.makedirs(os.path.dirname(h5_path), exist_ok=True)
-        for p in (seal_path, json_path, h5_path):
-            remove_stale_tmp(p)
-        _check_space(os.path.dirname(h5_path), scenes, len(js), what)
-        if os.path.exists(seal_path):
-            os.remove(seal_path)  # an old seal must never vouch for the new files
-        atomic_write(json_path, js)
-        json_seal = FileSeal.of(json_path, hashlib.sha256(js).hexdigest())
-        what = h5_rel
-        h5_sha = _atomic_write_h5(h5_path, scenes, n_src, {"split": split, "shard": shard, **attrs})
-        h5_seal = FileSeal.of(h5_path, h5_sha)
-        what = os.path.relpath(seal_path, out_dir)
-        atomic_write(seal_path, (json.dumps(Seal(fingerprint, h5_seal, json_seal).to_json()) + "\n").encode())
-    except (OSError, RuntimeError) as e:  # h5py reports some HDF5 write failures as RuntimeError
-        raise write_error(what, e, out_dir) from None
-    return ShardEntry(h5_rel, json_rel, len(scenes), h5_seal.sha256, json_seal.sha256)
+    def __init__(self, out_dir: str, split: str, shard: int, n_scenes: int, attrs: dict, fingerprint: str = ""):
+        self.out_dir, self.split, self.shard, self.n = out_dir, split, shard, n_scenes
+        self.attrs = {k: v for k, v in attrs.items() if k != "audio_coding"}
+        self.coding = attrs.get("audio_coding", AudioCoding.FLOAT32)
+        self.fingerprint = fingerprint
+        layout = Layout(out_dir)
+        self.h5_rel, self.json_rel = shard_names(split, shard)
+        self.h5_path, self.json_path = layout.shard_files(split, shard)
+        self.seal_path = layout.seal_file(split, shard)
+        self.tmp = f"{self.h5_path}.tmp-{os.getpid()}"
+        self.kept: list[RenderedScene] = []  # without audio
+        self.entry: ShardEntry | None = None
+        self._h5 = self._audio = None
 
+    def __enter__(self) -> "ShardWriter":
+        try:
+            os.makedirs(os.path.dirname(self.h5_path), exist_ok=True)
+            for p in (self.seal_path, self.json_path, self.h5_path):
+                remove_stale_tmp(p)
+            if os.path.exists(self.seal_path):
+                os.remove(self.seal_path)  # an old seal must never vouch for new files
+        except OSError as e:
+            raise write_error(self.h5_rel, e, self.out_dir) from None
+        return self
 
-def _check_space(folder: str, scenes: list[RenderedScene], json_bytes: int, what: str) -> None:
-    """Refuse, in one line, a shard the disk cannot hold: a write that runs out of space
-    mid-file can take the HDF5 library down with it."""
-    need = (sum(s.audio.nbytes + 4 * s.azimuth.size * 4 + s.mic_positions.nbytes for s in scenes) + json_bytes)
-    need = int(need * (1 + SPACE_MARGIN))
-    free = shutil.disk_usage(folder).free
-    if free < need:
-        raise OSError(errno.ENOSPC, f"No space left: the shard needs about {need / 1e6:.1f} MB, "
-                                    f"{free / 1e6:.1f} MB are free", what)
+    def add(self, scene: RenderedScene) -> None:
+        """Write one scene (the shard's scenes in order)."""
+        i = len(self.kept)
+        if i >= self.n:
+            raise ValueError(f"shard {self.h5_rel} holds {self.n} scenes; got one more")
+        try:
+            _check_space(os.path.dirname(self.h5_path), scene.audio.nbytes * (1 + SPACE_MARGIN), self.h5_rel)
+            if self._h5 is None:
+                self._h5 = h5py.File(self.tmp, "w", track_order=False, libver=("earliest", "v110"))
+                self._audio = create_audio(self._h5, self.coding, self.n, *scene.audio.shape)
+            self._audio[i] = encode(scene.audio, self.coding, int(self.attrs["fs"]))
+        except (OSError, RuntimeError) as e:  # h5py reports some HDF5 write failures as RuntimeError
+            raise write_error(self.h5_rel, e, self.out_dir) from None
+        self.kept.append(replace(scene, audio=None))
 
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            if exc_type is None:
+                if len(self.kept) != self.n:
+                    raise ValueError(f"shard {self.h5_rel}: {len(self.kept)} scenes written, {self.n} expected")
+                self._finish()
+        finally:
+            if self._h5 is not None:
+                self._h5.close()
+            if os.path.exists(self.tmp):
+                os.remove(self.tmp)
 
-def _atomic_write_h5(path: str, scenes: list[RenderedScene], n_src: int, attrs: dict) -> str:
-    """Write the HDF5 file of a shard under a temporary name, then rename; returns its sha256."""
-    n = len(scenes)
-    c, t = scenes[0].audio.shape
-    f_ = scenes[0].azimuth.shape[1]
-    tmp = f"{path}.tmp-{os.getpid()}"
-    try:
-        with h5py.File(tmp, "w", track_order=False, libver=("earliest", "v110")) as h:
-            audio = h.create_dataset("audio", (n, c, t), dtype="float32", chunks=(1, c, t), track_times=False)
-            for i, s in enumerate(scenes):
-                audio[i] = s.audio
+    def _finish(self) -> None:
+        scenes = self.kept
+        doc = {"format_version": FORMAT_VERSION, "split": self.split, "shard": self.shard, **self.attrs,
+               **({"audio_coding": str(self.coding)} if self.coding != AudioCoding.FLOAT32 else {}),
+               "scenes": [s.record for s in scenes]}
+        js = (json.dumps(jsonable(doc), ensure_ascii=False, indent=1) + "\n").encode("utf-8")
+        what = self.h5_rel
+        try:
+            h = self._h5
+            n_src = max(s.azimuth.shape[0] for s in scenes)
             g = h.create_group("labels")
             for key in LABEL_KEYS:
                 g.create_dataset(key, data=_stack_padded([getattr(s, key) for s in scenes], n_src, np.nan, np.float32),
@@ -124,17 +152,36 @@ def _atomic_write_h5(path: str, scenes: list[RenderedScene], n_src: int, attrs: 
                              track_times=False)
             h.create_dataset("mic_positions", data=np.stack([s.mic_positions for s in scenes]).astype(np.float32),
                              track_times=False)
-            for k, v in sorted(attrs.items()):
+            for k, v in sorted({"split": self.split, "shard": self.shard, **self.attrs}.items()):
                 h.attrs[k] = _attr(v)
-            h.attrs["frames"] = f_
-        _fsync_file(tmp)
-        digest = sha256_file(tmp)  # just written: read back from the page cache
-        os.replace(tmp, path)
-        _fsync_dir(os.path.dirname(path))
-        return digest
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+            h.attrs["frames"] = scenes[0].azimuth.shape[1]
+            h.close()
+            self._h5 = None
+            what = self.json_rel
+            _check_space(os.path.dirname(self.h5_path), len(js) * (1 + SPACE_MARGIN), what)
+            atomic_write(self.json_path, js)
+            json_seal = FileSeal.of(self.json_path, hashlib.sha256(js).hexdigest())
+            what = self.h5_rel
+            _fsync_file(self.tmp)
+            digest = sha256_file(self.tmp)  # just written: read back from the page cache
+            os.replace(self.tmp, self.h5_path)
+            _fsync_dir(os.path.dirname(self.h5_path))
+            h5_seal = FileSeal.of(self.h5_path, digest)
+            what = os.path.relpath(self.seal_path, self.out_dir)
+            seal = Seal(self.fingerprint, h5_seal, json_seal)
+            atomic_write(self.seal_path, (json.dumps(seal.to_json()) + "\n").encode())
+        except (OSError, RuntimeError) as e:
+            raise write_error(what, e, self.out_dir) from None
+        self.entry = ShardEntry(self.h5_rel, self.json_rel, len(scenes), h5_seal.sha256, json_seal.sha256)
+
+
+def _check_space(folder: str, need: float, what: str) -> None:
+    """Refuse, in one line, a write the disk cannot hold: a write that runs out of space
+    mid-file can take the HDF5 library down with it."""
+    free = shutil.disk_usage(folder).free
+    if free < need:
+        raise OSError(errno.ENOSPC, f"No space left: about {need / 1e6:.1f} MB needed, {free / 1e6:.1f} MB free",
+                      what)
 
 
 def _stack_padded(arrays, n_src, fill, dtype) -> np.ndarray:
