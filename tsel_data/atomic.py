@@ -143,6 +143,7 @@ def _alive(pid: int) -> bool:
 
 _NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
 _NOT_WRITABLE = (errno.EACCES, errno.EPERM, errno.EROFS)
+_NOT_WRITABLE_TEXT = ("Permission denied", "Operation not permitted", "Read-only file system")
 
 
 def write_error(what: str, e: OSError, out_dir: str = "") -> DatasetError:
@@ -152,16 +153,16 @@ def write_error(what: str, e: OSError, out_dir: str = "") -> DatasetError:
     the message.
     """
     text = str(e)
+    errno_ = getattr(e, "errno", None)  # RuntimeError from h5py has none
     where = out_dir or "the output folder"
-    if e.errno in _NO_SPACE or "No space left" in text or "Disk quota" in text:
+    if errno_ in _NO_SPACE or "No space left" in text or "Disk quota" in text:
         why = (f"no space left on the device; free space (or move {where} elsewhere) and rerun with --resume: "
                f"finished shards are kept")
         reason = "disk full"
-    elif e.errno in _NOT_WRITABLE or any(m in text for m in ("Permission denied", "Operation not permitted",
-                                                               "Read-only file system")):
+    elif errno_ in _NOT_WRITABLE or any(m in text for m in _NOT_WRITABLE_TEXT):
         why = f"{where} is not writable; fix its permissions or choose another --out"
-        reason = e.strerror or "not writable"
+        reason = getattr(e, "strerror", None) or next((m for m in _NOT_WRITABLE_TEXT if m in text), "not writable")
     else:
         why = "check the output folder and rerun with --resume"
-        reason = e.strerror or (text.splitlines()[0] if text else type(e).__name__)
+        reason = getattr(e, "strerror", None) or (text.splitlines()[0][:200] if text else type(e).__name__)
     return DatasetError(f"cannot write {what}: {reason}; {why}")
