@@ -1,0 +1,111 @@
+"""The store: audio codings round-trip and read back as float32; the reader returns what
+plain h5py reads; the writer streams (one scene's audio in memory) and leaves nothing on
+failure."""
+import io
+import os
+
+import h5py
+import numpy as np
+import pytest
+import soundfile as sf
+
+from datasetfixture import make_scene
+from tsel_data.config import load_config
+from tsel_data.errors import DatasetError
+from tsel_data.pipeline import generate
+from tsel_data.store.codings import INT16_SCALE, decode, encode, to_int16
+from tsel_data.store.dataset import shard_attrs
+from tsel_data.store.reader import open_dataset
+from tsel_data.store.verify import check_dataset
+from tsel_data.store.writer import ShardWriter
+
+
+def test_int16_and_flac_codings_round_trip():
+    rng = np.random.default_rng(0)
+    x = np.clip(0.3 * rng.standard_normal((4, 4800)), -0.99, 0.99).astype(np.float32)
+    q = decode(encode(x, "int16", 24000), "int16")
+    assert q.dtype == np.float32 and np.max(np.abs(q - x)) <= 0.5 / INT16_SCALE + 1e-9
+    f = decode(encode(x, "flac", 24000), "flac")
+    np.testing.assert_array_equal(f, q)  # lossless over int16
+    assert to_int16(np.array([1.5, -1.5], np.float32)).tolist() == [32767, -32768]  # saturates, never wraps
+    tone = (0.5 * np.sin(2 * np.pi * 440 * np.arange(4800) / 24000)).astype(np.float32)[None].repeat(4, 0)
+    flac = encode(tone, "flac", 24000)
+    assert flac.dtype == np.uint8 and flac.nbytes < 0.5 * encode(tone, "int16", 24000).nbytes
+
+
+@pytest.fixture(scope="module", params=["int16", "flac"])
+def coded(request, tmp_path_factory, demo_corpus):
+    coding = request.param
+    out = {}
+    for c in ("float32", coding):
+        d = str(tmp_path_factory.mktemp(c) / "ds")
+        cfg = load_config(preset="demo", corpus_dir=demo_corpus, splits={"train": 3, "val": 0, "test": 0},
+                          overrides=["audio.duration=1.0", "output.shard_size=2", f'output.audio="{c}"'])
+        generate(cfg, d, workers=1, progress=False)
+        out[c] = d
+    return coding, out
+
+
+def test_every_coding_reads_back_as_float32_and_verifies(coded):
+    coding, out = coded
+    assert check_dataset(out[coding]).ok
+    with open_dataset(out["float32"], "train") as ref, open_dataset(out[coding], "train") as ds:
+        assert ds.doc.raw["audio_coding"] == coding
+        for i in range(len(ds)):
+            a, b = ref[i].audio, ds[i].audio
+            assert b.dtype == np.float32 and b.shape == a.shape
+            np.testing.assert_allclose(b, a, atol=0.5 / INT16_SCALE + 1e-7)
+            np.testing.assert_array_equal(ds[i].azimuth, ref[i].azimuth)
+        buf = np.zeros((2, *ds[0].audio.shape), np.float32)
+        np.testing.assert_array_equal(ds.read_audio([2, 0], out=buf), np.stack([ds[2].audio, ds[0].audio]))
+
+
+def test_plain_h5py_decodes_every_coding_as_docs_format_says(coded):
+    """The recipes of docs/format.md, "Audio codings"."""
+    coding, out = coded
+    with h5py.File(os.path.join(out[coding], "train", "shard-00000.h5")) as h:
+        a = h["audio"]
+        if coding == "int16":
+            x = a[1].astype(np.float32) * a.attrs["audio_scale"]
+        else:
+            pcm, fs = sf.read(io.BytesIO(a[1].tobytes()), dtype="int16")
+            x = pcm.T.astype(np.float32) * a.attrs["audio_scale"]
+    with open_dataset(out[coding], "train") as ds:
+        np.testing.assert_array_equal(x, ds[1].audio)
+
+
+def test_the_writer_streams_and_leaves_nothing_when_a_scene_fails(tmp_path):
+    rng = np.random.default_rng(1)
+    scenes = [make_scene("train", i, rng=rng) for i in range(3)]
+    attrs = shard_attrs(16000, 0.1, "mic4")
+    with pytest.raises(RuntimeError, match="render failed"):
+        with ShardWriter(str(tmp_path), "train", 0, 3, attrs) as w:
+            w.add(scenes[0])
+            assert w.kept[0].audio is None  # the audio went to the file, not to memory
+            raise RuntimeError("render failed")
+    assert os.listdir(tmp_path / "train") == []
+    with ShardWriter(str(tmp_path), "train", 0, 3, attrs, fingerprint="f") as w:
+        for s in scenes:
+            w.add(s)
+    assert sorted(os.listdir(tmp_path / "train")) == ["shard-00000.h5", "shard-00000.json", "shard-00000.seal.json"]
+    with pytest.raises(ValueError, match="1 scenes written, 3 expected"):
+        with ShardWriter(str(tmp_path), "train", 1, 3, attrs) as w:
+            w.add(scenes[0])  # too few scenes: nothing under a final name
+    assert not os.path.exists(tmp_path / "train" / "shard-00001.h5")
+
+
+def test_a_shard_with_a_wrong_coding_is_refused(coded):
+    coding, out = coded
+    import json
+    p = os.path.join(out[coding], "dataset.json")
+    doc = json.load(open(p))
+    doc["audio_coding"] = "float32"
+    json.dump(doc, open(p, "w"))
+    try:
+        msgs = check_dataset(out[coding]).messages()
+        assert any(f"audio coded as {coding}" in m for m in msgs)
+    finally:
+        doc["audio_coding"] = coding
+        json.dump(doc, open(p, "w"), indent=1)
+    with pytest.raises(DatasetError):
+        open_dataset(out[coding], "nope")
