@@ -91,9 +91,18 @@ class _ShardMeta:
     ids: list
     audio: h5py.Dataset
     coding: str
+    raw_chunks: bool
     fs: int
     label_hop: float
     format: str
+
+
+def _raw_chunks(ds: h5py.Dataset) -> bool:
+    """Whether scene i is exactly chunk (i, 0, 0), unfiltered, little-endian: as the
+    writer makes float32 and int16 audio."""
+    return (ds.ndim == 3 and ds.chunks == (1, *ds.shape[1:]) and ds.id.get_create_plist().get_nfilters() == 0
+            and ds.dtype.byteorder in ("<", "=") and ds.dtype in (np.dtype("<f4"), np.dtype("<i2"))
+            and np.little_endian)
 
 
 class SceneDataset:
@@ -203,6 +212,7 @@ class SceneDataset:
                 labels={key: lab[key][()] for key in (*LABEL_KEYS, "active")},
                 mics=f["mic_positions"][()].astype(np.float32), queries=list(f["query"].asstr()[()]),
                 ids=list(f["scene_id"].asstr()[()]), audio=f["audio"], coding=coding_of(f["audio"]),
+                raw_chunks=_raw_chunks(f["audio"]),
                 fs=int(f.attrs.get("fs", self.fs)), label_hop=float(f.attrs.get("label_hop", self.label_hop)),
                 format=as_str(f.attrs.get("format"), self.format))
             self._check_pair(k, m.ids)
@@ -279,10 +289,22 @@ class SceneDataset:
 
     @staticmethod
     def _audio(m: "_ShardMeta", r: int, out: np.ndarray | None = None) -> np.ndarray:
+        if m.coding == AudioCoding.FLAC:
+            return decode(m.audio[r], m.coding, out)
+        shape = m.audio.shape[1:]
+        if out is None:
+            out = np.empty(shape, dtype=np.float32)
+        if m.raw_chunks:
+            # One unfiltered chunk per scene: its bytes are the samples. Reading the chunk
+            # skips HDF5's selection and conversion machinery (5x faster than audio[r]).
+            if m.coding == AudioCoding.FLOAT32:
+                m.audio.id.read_direct_chunk((r, 0, 0), out=out.reshape(-1).view(np.uint8))
+                return out
+            pcm = np.empty(shape, dtype=np.int16)
+            m.audio.id.read_direct_chunk((r, 0, 0), out=pcm.reshape(-1).view(np.uint8))
+            return decode(pcm, m.coding, out)
         if m.coding == AudioCoding.FLOAT32:
-            if out is None:
-                out = np.empty(m.audio.shape[1:], dtype=np.float32)
-            m.audio.read_direct(out, np.s_[r])  # straight into the caller's buffer: no copy
+            m.audio.read_direct(out, np.s_[r])
             return out
         return decode(m.audio[r], m.coding, out)
 

@@ -87,7 +87,8 @@ class ShardWriter:
         self.h5_path, self.json_path = layout.shard_files(split, shard)
         self.seal_path = layout.seal_file(split, shard)
         self.tmp = f"{self.h5_path}.tmp-{os.getpid()}"
-        self.kept: list[RenderedScene] = []  # without audio
+        self.kept: list[RenderedScene] = []  # without audio and record
+        self.records: list[str] = []  # each scene's record, as it appears in the JSON shard
         self.entry: ShardEntry | None = None
         self._h5 = self._audio = None
 
@@ -115,7 +116,9 @@ class ShardWriter:
             self._audio[i] = encode(scene.audio, self.coding, int(self.attrs["fs"]))
         except (OSError, RuntimeError) as e:  # h5py reports some HDF5 write failures as RuntimeError
             raise write_error(self.h5_rel, e, self.out_dir) from None
-        self.kept.append(replace(scene, audio=None))
+        # keep the record as the JSON text it becomes: a fraction of its Python objects' size
+        self.records.append(json.dumps(jsonable(scene.record), ensure_ascii=False, indent=1).replace("\n", "\n  "))
+        self.kept.append(replace(scene, audio=None, record=None))
 
     def __exit__(self, exc_type, exc, tb) -> None:
         try:
@@ -131,10 +134,9 @@ class ShardWriter:
 
     def _finish(self) -> None:
         scenes = self.kept
-        doc = {"format_version": FORMAT_VERSION, "split": self.split, "shard": self.shard, **self.attrs,
-               **({"audio_coding": str(self.coding)} if self.coding != AudioCoding.FLOAT32 else {}),
-               "scenes": [s.record for s in scenes]}
-        js = (json.dumps(jsonable(doc), ensure_ascii=False, indent=1) + "\n").encode("utf-8")
+        js = _shard_json({"format_version": FORMAT_VERSION, "split": self.split, "shard": self.shard, **self.attrs,
+                          **({"audio_coding": str(self.coding)} if self.coding != AudioCoding.FLOAT32 else {})},
+                         self.records)
         what = self.h5_rel
         try:
             h = self._h5
@@ -173,6 +175,15 @@ class ShardWriter:
         except (OSError, RuntimeError) as e:
             raise write_error(what, e, self.out_dir) from None
         self.entry = ShardEntry(self.h5_rel, self.json_rel, len(scenes), h5_seal.sha256, json_seal.sha256)
+
+
+def _shard_json(header: dict, records: list[str]) -> bytes:
+    """The JSON shard: ``header`` then ``"scenes": [...]``, laid out as ``json.dumps(doc,
+    indent=1)`` lays it out (the records come already serialised, indented for depth 2)."""
+    head = json.dumps(jsonable({**header, "scenes": []}), ensure_ascii=False, indent=1)
+    assert head.endswith('"scenes": []\n}')
+    body = "[\n  " + ",\n  ".join(records) + "\n ]" if records else "[]"
+    return (head[: -len("[]\n}")] + body + "\n}\n").encode("utf-8")
 
 
 def _check_space(folder: str, need: float, what: str) -> None:

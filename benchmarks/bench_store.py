@@ -1,0 +1,179 @@
+"""Storage and reading: codings, the reader against raw h5py, a worker's peak memory.
+
+    .venv/bin/python benchmarks/bench_store.py [--scenes 32] [--rss-sizes 16,128,1024]
+
+All on the built-in demo corpus, 10 s 24 kHz mic4 scenes, measured in one run:
+
+1. **codings**: the same scenes generated with ``output.audio`` = float32, int16 and
+   flac: bytes per scene and ratio to float32, SNR against float32, and scenes/s read
+   through ``open_dataset`` (warm page cache) with the ratio to float32's.
+2. **reader vs raw h5py**: float32 shards read one scene at a time with
+   ``open_dataset(...)[i]`` against raw ``h5py`` ``audio[i]`` (the baseline), and in
+   batches with ``read_audio(indices, out=buffer)`` against raw ``read_direct`` into one
+   reused buffer.
+3. **peak memory of a render worker** (``--rss-sizes``): one process renders and writes
+   one shard of N scenes (``render_shard``, as a ``tsel render`` worker does); its peak
+   resident set size (``ru_maxrss`` of a fresh subprocess) per shard size.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+import h5py  # noqa: E402
+
+from tsel_data.config import load_config  # noqa: E402
+from tsel_data.demo import synth_corpus  # noqa: E402
+from tsel_data.pipeline import generate  # noqa: E402
+from tsel_data.store.reader import open_dataset  # noqa: E402
+
+
+def make(corpus, root, n, coding, shard_size=16):
+    out = os.path.join(root, coding)
+    cfg = load_config(preset="demo", corpus_dir=corpus, splits={"train": n, "val": 0, "test": 0},
+                      overrides=[f'output.audio="{coding}"', f"output.shard_size={shard_size}"])
+    generate(cfg, out, workers=2, progress=False)
+    return out
+
+
+def read_all(out, repeats=3) -> tuple[float, np.ndarray]:
+    """Scenes/s through open_dataset, best of ``repeats`` warm passes; and the audio."""
+    best, audio = 0.0, None
+    with open_dataset(out, "train") as ds:
+        audio = np.stack([ds[i].audio for i in range(len(ds))])  # warms the page cache
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            for i in range(len(ds)):
+                ds[i]
+            best = max(best, len(ds) / (time.perf_counter() - t0))
+    return best, audio
+
+
+def shard_bytes(out) -> int:
+    d = os.path.join(out, "train")
+    return sum(os.path.getsize(os.path.join(d, f)) for f in os.listdir(d) if f.endswith(".h5"))
+
+
+def raw_rates(out, repeats=3) -> tuple[float, float]:
+    """Raw h5py scenes/s: audio[i] per scene, and read_direct into one reused buffer."""
+    files = sorted(os.path.join(out, "train", f) for f in os.listdir(os.path.join(out, "train")) if f.endswith(".h5"))
+    hs = [h5py.File(f, "r") for f in files]
+    try:
+        n = sum(h["audio"].shape[0] for h in hs)
+        per, batched = 0.0, 0.0
+        buf = np.empty(hs[0]["audio"].shape[1:], np.float32)
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            for h in hs:
+                a = h["audio"]
+                for i in range(a.shape[0]):
+                    a[i]
+            per = max(per, n / (time.perf_counter() - t0))
+            t0 = time.perf_counter()
+            for h in hs:
+                a = h["audio"]
+                for i in range(a.shape[0]):
+                    a.read_direct(buf, np.s_[i])
+            batched = max(batched, n / (time.perf_counter() - t0))
+        return per, batched
+    finally:
+        for h in hs:
+            h.close()
+
+
+def batched_rate(out, batch=8, repeats=3) -> float:
+    with open_dataset(out, "train") as ds:
+        n = len(ds)
+        buf = np.empty((batch, *ds[0].audio.shape), np.float32)
+        best = 0.0
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            for start in range(0, n - batch + 1, batch):
+                ds.read_audio(range(start, start + batch), out=buf)
+            best = max(best, (n // batch) * batch / (time.perf_counter() - t0))
+        return best
+
+
+RSS_CHILD = r"""
+import json, os, sys
+sys.path.insert(0, {repo!r})
+from tsel_data.executors import prepare_worker
+from tsel_data.pipeline import load_plan, plan_shard_tasks, render_shard
+from tsel_data.store.dataset import shard_attrs
+prepare_worker()
+out = {out!r}
+cfg, plans = load_plan(out)
+task = plan_shard_tasks(cfg, plans)[0]
+attrs = shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio)
+render_shard(out, task, plans[task.split][task.start:task.stop], attrs)
+# VmHWM, not ru_maxrss: the latter keeps the high-water mark of the parent's memory forked
+# into this process before it exec'ed Python
+peak = [l for l in open("/proc/self/status") if l.startswith("VmHWM:")][0].split()[1]
+print(json.dumps(int(peak) * 1024))
+"""
+
+
+def peak_rss(corpus, root, size) -> float:
+    """Peak RSS (bytes) of a fresh process rendering one shard of ``size`` scenes."""
+    from tsel_data.pipeline import plan_dataset
+
+    out = os.path.join(root, f"rss-{size}")
+    cfg = load_config(preset="demo", corpus_dir=corpus, splits={"train": size, "val": 0, "test": 0},
+                      overrides=[f"output.shard_size={size}"])
+    plan_dataset(cfg, out)
+    code = RSS_CHILD.format(repo=os.path.join(os.path.dirname(__file__), ".."), out=out)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    shutil.rmtree(out)
+    return float(json.loads(r.stdout.strip().splitlines()[-1]))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenes", type=int, default=32)
+    ap.add_argument("--rss-sizes", default="16,128,1024", help="Shard sizes for the memory test ('' skips it).")
+    args = ap.parse_args()
+    root = tempfile.mkdtemp(prefix="tsel-bench-store-")
+    try:
+        corpus = os.path.join(root, "corpus")
+        synth_corpus(corpus)
+        print(f"{os.cpu_count()} cores; {args.scenes} demo scenes of 10 s, 24 kHz, 4 channels\n")
+        print(f"{'coding':>8} {'MB/scene':>9} {'x float32':>10} {'SNR dB':>8} {'read scenes/s':>14} {'x float32':>10}")
+        rows, ref = {}, None
+        for coding in ("float32", "int16", "flac"):
+            out = make(corpus, root, args.scenes, coding)
+            rate, audio = read_all(out)
+            rows[coding] = (shard_bytes(out) / args.scenes, rate, audio, out)
+        ref_bytes, ref_rate, ref, ref_out = rows["float32"]
+        for coding, (b, rate, audio, _) in rows.items():
+            err = float(np.sum((audio - ref) ** 2))
+            snr = 10 * np.log10(float(np.sum(ref ** 2)) / err) if err > 0 else float("inf")
+            print(f"{coding:>8} {b / 1e6:9.2f} {b / ref_bytes:10.3f} {snr:8.1f} {rate:14.0f} {rate / ref_rate:10.2f}",
+                  flush=True)
+
+        raw_per, raw_batched = raw_rates(ref_out)
+        ours_batched = batched_rate(ref_out)
+        print(f"\nreader vs raw h5py (float32, warm): per scene {ref_rate:.0f} vs {raw_per:.0f} scenes/s "
+              f"({ref_rate / raw_per:.2f}x); batched into a buffer {ours_batched:.0f} vs {raw_batched:.0f} "
+              f"scenes/s ({ours_batched / raw_batched:.2f}x)", flush=True)
+
+        sizes = [int(x) for x in args.rss_sizes.split(",") if x]
+        if sizes:
+            print(f"\n{'shard size':>10} {'peak RSS of the render worker (MB)':>36}")
+            for size in sizes:
+                print(f"{size:>10} {peak_rss(corpus, root, size) / 1e6:36.0f}", flush=True)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
