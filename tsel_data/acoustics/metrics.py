@@ -6,7 +6,11 @@ from its -5 to -35 dB range (T30, ISO 3382-1: least-squares line, extrapolated t
 """
 from __future__ import annotations
 
+from itertools import combinations
+
 import numpy as np
+
+from ..geometry import SOUND_SPEED
 
 
 def edc(rir: np.ndarray) -> np.ndarray:
@@ -38,3 +42,12 @@ def decay_time(edc_db: np.ndarray, dt: float, lo: float = -5.0, hi: float = -35.
 def t30(rir: np.ndarray, fs: int) -> float:
     """T30 (s) of a 1-D impulse response at ``fs`` Hz: Schroeder EDC, -5 to -35 dB fit, ×2."""
     return decay_time(edc(np.asarray(rir).reshape(-1)), 1.0 / fs)
+
+
+def sabine_min_rt60(dims, c: float = SOUND_SPEED) -> float:
+    """The shortest RT60 (s) ``pra.inverse_sabine`` accepts for a shoebox of ``dims`` (m):
+    Sabine's RT60 with fully absorbing walls, 24 ln(10) V / (c S)."""
+    d = [float(v) for v in dims]
+    V = float(np.prod(d))
+    S = 2.0 * sum(a * b for a, b in combinations(d, 2))
+    return 24.0 * np.log(10.0) * V / (c * S)

@@ -2,7 +2,8 @@
 
 ``shoebox_rirs(room, array, points, fs, method, seed)`` returns RIRs [S, C, L] with
 sample 0 at the emission time and the direct path of a point r metres away at
-r / c · fs samples with amplitude 1 / (4π r) (pyroomacoustics' scale).
+r / c · fs samples with amplitude 1 / (4π r) (the free-field Green's function; the
+pyroomacoustics method is put on the same scale, acoustics/pyroom.py).
 
 Methods (docs/acoustics.md):
 

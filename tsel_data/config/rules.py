@@ -18,6 +18,7 @@ import math
 import re
 from dataclasses import fields
 
+from ..acoustics.metrics import sabine_min_rt60
 from ..distributions import Dist
 from ..errors import ConfigError, GeometryError
 from ..geometry import array_radius
@@ -173,6 +174,17 @@ def cross_field_problems(cfg: Config, where: str = "config") -> list[ConfigError
     if not cfg.room.bank and cfg.scene.format == "foa" and cfg.room.rir_method == "pyroomacoustics":
         out.append(ConfigError(f"{where}: room.rir_method = \"pyroomacoustics\" renders omni capsules only; "
                                f"use \"hybrid\" or \"ism\" for scene.format = \"foa\""))
+    if not cfg.room.bank and cfg.room.rir_method == "pyroomacoustics":
+        dims = [getattr(cfg.room, k).bounds for k in ("length", "width", "height")]
+        rt = cfg.room.rt60.bounds
+        if rt is not None and all(b is not None and b[0] > 0 for b in dims):
+            # the largest room decays slowest with fully absorbing walls: it sets the limit
+            limit = sabine_min_rt60([b[1] for b in dims])
+            if rt[0] < limit:
+                out.append(ConfigError(
+                    f"{where}: room.rt60 minimum {rt[0]} s is below what pyroomacoustics can make in the largest "
+                    f"room ({limit:.2f} s: Sabine's RT60 with fully absorbing walls); raise room.rt60, shrink the "
+                    f"room, or use room.rir_method = \"hybrid\""))
     return out
 
 
