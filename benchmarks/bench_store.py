@@ -13,7 +13,11 @@ All on the built-in demo corpus, 10 s 24 kHz mic4 scenes, measured in one run:
    reused buffer.
 3. **peak memory of a render worker** (``--rss-sizes``): one process renders and writes
    one shard of N scenes (``render_shard``, as a ``tsel render`` worker does); its peak
-   resident set size (``ru_maxrss`` of a fresh subprocess) per shard size.
+   resident set size (VmHWM of a fresh subprocess) per shard size.
+4. **clips as they come**: the time to render a scene (``render_scene``, one process,
+   the clip cache emptied before each scene, as with a large corpus) when the corpus is
+   24 kHz mono WAV (the baseline), the same clips as 44.1 kHz stereo 24-bit WAV, and
+   those after ``tsel corpus prepare``.
 """
 from __future__ import annotations
 
@@ -137,6 +141,44 @@ def peak_rss(corpus, root, size) -> float:
     return float(json.loads(r.stdout.strip().splitlines()[-1]))
 
 
+def scene_cost(corpus, root, n) -> dict:
+    """Seconds per scene rendered from 24 kHz mono clips, 44.1 kHz stereo, and prepared."""
+    from scipy.signal import resample_poly
+
+    from tsel_data import audio
+    from tsel_data.catalog import build_catalog, prepare_corpus
+    from tsel_data.plan import prepare_views, plan_scene
+    from tsel_data.render import render_scene
+    from tsel_data.store.layout import Layout
+    import soundfile as sf
+
+    stereo = os.path.join(root, "stereo")
+    shutil.copytree(corpus, stereo)
+    for f in os.listdir(os.path.join(corpus, "audio")):
+        x, fs = sf.read(os.path.join(corpus, "audio", f), dtype="float32")
+        x = x if x.ndim == 1 else x.mean(axis=1)
+        y = resample_poly(x, 44100 // np.gcd(44100, fs), fs // np.gcd(44100, fs)).astype(np.float32)
+        sf.write(os.path.join(stereo, "audio", f), np.stack([y, 0.8 * y], 1), 44100, subtype="PCM_24", format="WAV")
+
+    def per_scene(folder):
+        cfg = load_config(preset="demo", corpus_dir=folder, splits={"train": n, "val": 0, "test": 0},
+                          overrides=['corpus.check="none"'])
+        _, views = prepare_views(cfg, Layout(os.path.join(root, "home")))
+        recipes = [plan_scene(cfg, "train", i, views["train"]) for i in range(n)]
+        render_scene(recipes[0])  # warm-up (imports, FFT plans)
+        t0 = time.perf_counter()
+        for r in recipes:
+            audio._load_clip_cached.cache_clear()
+            render_scene(r)
+        return (time.perf_counter() - t0) / n, cfg
+
+    out = {"24 kHz mono": per_scene(corpus)[0]}
+    out["44.1 kHz stereo"], cfg = per_scene(stereo)
+    prepare_corpus(cfg, build_catalog(cfg, stereo).clips, workers=2)
+    out["44.1 kHz stereo, prepared"] = per_scene(stereo)[0]
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scenes", type=int, default=32)
@@ -165,6 +207,12 @@ def main():
         print(f"\nreader vs raw h5py (float32, warm): per scene {ref_rate:.0f} vs {raw_per:.0f} scenes/s "
               f"({ref_rate / raw_per:.2f}x); batched into a buffer {ours_batched:.0f} vs {raw_batched:.0f} "
               f"scenes/s ({ours_batched / raw_batched:.2f}x)", flush=True)
+
+        costs = scene_cost(corpus, root, min(args.scenes, 16))
+        base = costs["24 kHz mono"]
+        print(f"\n{'clips':>26} {'ms/scene':>9} {'x 24 kHz mono':>14}")
+        for name, t in costs.items():
+            print(f"{name:>26} {1e3 * t:9.1f} {t / base:14.2f}", flush=True)
 
         sizes = [int(x) for x in args.rss_sizes.split(",") if x]
         if sizes:

@@ -16,6 +16,7 @@ import numpy as np
 import soundfile as sf
 
 from .atomic import atomic_output
+from .prepared import read_prepared, write_prepared
 from .errors import AudioError
 
 EPS = 1e-12
@@ -191,8 +192,9 @@ def _in_band_rms(x: np.ndarray, sr: int, cutoff: float, n_fft: int = 4096, windo
 
 
 def load_clip_cached(path: str, fs: int, duration: float, offset: float) -> np.ndarray:
-    """load_clip with a small per-process cache: clips recur across a shard's scenes. A
-    file that changed (size or modification time) is read again."""
+    """load_clip with a small per-process cache (clips recur across a shard's scenes) and
+    prepared clips (prepared.py) when ``tsel corpus prepare`` made them. A file that
+    changed (size or modification time) is read again."""
     try:
         st = os.stat(path)
         stamp = (st.st_size, st.st_mtime_ns)
@@ -203,9 +205,21 @@ def load_clip_cached(path: str, fs: int, duration: float, offset: float) -> np.n
 
 @lru_cache(maxsize=64)
 def _load_clip_cached(path: str, stamp, fs: int, duration: float, offset: float) -> np.ndarray:
-    x = load_clip(path, fs, duration, offset)
+    x = read_prepared(path, stamp, fs, duration, offset) if stamp is not None else None
+    if x is None:
+        x = load_clip(path, fs, duration, offset)
     x.setflags(write=False)
     return x
+
+
+def prepare_clip(path: str, fs: int, duration: float, offset: float) -> bool:
+    """Make the prepared form of a clip unless it exists; True when it was made now."""
+    st = os.stat(path)
+    stamp = (st.st_size, st.st_mtime_ns)
+    if read_prepared(path, stamp, fs, duration, offset) is not None:
+        return False
+    write_prepared(path, stamp, fs, duration, offset, load_clip(path, fs, duration, offset))
+    return True
 
 
 def save_wav(path, audio: np.ndarray, fs: int, subtype: str = "FLOAT") -> None:

@@ -18,7 +18,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 from .atomic import write_lines
-from .audio import ClipCheck, check_clip
+from .audio import ClipCheck, check_clip, prepare_clip
 from .clip import Clip
 from .config import Config
 from .errors import AudioError, ConfigError, ManifestError, TselError
@@ -223,6 +223,29 @@ def check_clips(clips: list[Clip], cfg: Config, workers: int = 1) -> list[ClipCh
 
 def _check(a) -> ClipCheck:
     return check_clip(*a)
+
+
+def prepare_corpus(cfg: Config, clips: dict[str, list[Clip]], workers: int = 1, progress=None) -> dict:
+    """Prepare every clip the splits use (prepared.py) for scenes of ``cfg``'s rate and
+    duration. Returns {"made": n, "kept": n} (kept: already prepared)."""
+    jobs = [(c.audio, cfg.audio.fs, cfg.audio.duration, c.offset) for split in clips for c in clips[split]]
+    made = 0
+    if workers > 1 and len(jobs) > 1:
+        with ProcessPoolExecutor(workers) as ex:
+            for done in ex.map(_prepare, jobs, chunksize=16):
+                made += done
+                if progress:
+                    progress()
+    else:
+        for job in jobs:
+            made += _prepare(job)
+            if progress:
+                progress()
+    return {"made": made, "kept": len(jobs) - made}
+
+
+def _prepare(job) -> bool:
+    return prepare_clip(*job)
 
 
 def write_bad_clips(path: str, bad: list[BadClip]) -> None:
