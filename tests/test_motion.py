@@ -264,3 +264,52 @@ def test_banks_holding_two_formats_are_used_in_the_configs_format(tmp_path, demo
             b = open_bank_cached(r.bank.path, fmt)
             src = r.sources[0].bank
             assert np.all(b.read(src.room, src.trajectory, src.indices[:1]) == (1.0 if fmt == "foa" else 2.0))
+
+
+def test_speeds_and_distances_are_as_configured(small_config, tmp_path):
+    """Over 600 moving sources, each speed's share is within 3 points of its weight and
+    the median distance within 5 % of the configured one: placement keeps the drawn speed
+    and distance and retries only the rest of the geometry."""
+    cfg = small_config('scene.motion="moving"', 'scene.scenario="two-directional"',
+                       'scene.path=["choose", ["arc", "line"]]', 'scene.speed=["choose", [10.0, 20.0, 40.0]]',
+                       'sources.distance=["uniform", 1.0, 3.0]', "audio.duration=4.0", "scene.separated_frames=0.5",
+                       splits={"train": 300})
+    view = CatalogView(build_catalog(cfg, cfg.corpus.dir).clips["train"])
+    speeds, distances = [], []
+    for r in plan_recipes(cfg, "train", view):
+        c = np.asarray(r.array.centre)
+        for s in r.sources:
+            k = np.asarray(s.path, dtype=np.float64)
+            t, p = k[:, 0], k[:, 1:] - c
+            u = p / np.linalg.norm(p, axis=1, keepdims=True)
+            if np.allclose(np.linalg.norm(p, axis=1), np.linalg.norm(p[0])):  # an arc: great-circle rate
+                ang = np.degrees(np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1, 1)))
+                speeds.append(float(np.median(ang / np.diff(t))))
+                distances.append(float(np.linalg.norm(p[0])))
+            else:  # a line: v / closest distance
+                v = np.linalg.norm(p[1] - p[0]) / (t[1] - t[0])
+                e = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
+                closest = np.linalg.norm(p[0] - np.dot(p[0], e) * e)
+                speeds.append(float(np.degrees(v / closest)))
+                distances.append(float(closest))
+    speeds = np.asarray(speeds)
+    assert len(speeds) == 600
+    for w in (10.0, 20.0, 40.0):
+        share = float(np.mean(np.abs(speeds - w) < 0.5))
+        assert abs(share - 1 / 3) <= 0.03, (w, share)
+    assert abs(np.median(distances) - 2.0) <= 0.05 * 2.0, np.median(distances)
+
+
+def test_a_setting_the_rooms_cannot_hold_is_named_by_tsel_check(demo_corpus):
+    r = _tsel("check", "--preset", "demo", "--corpus-dir", demo_corpus, "--split", "train=4", "--split", "val=0",
+              "--split", "test=0", "--set", 'scene.motion="moving"', "--set", 'scene.path="line"',
+              "--set", "scene.speed=40.0", "--set", 'sources.distance=["uniform", 2.9, 3.0]',
+              "--set", 'room.length=["uniform", 5.0, 6.0]', "--set", 'room.width=["uniform", 5.0, 6.0]')
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "a line path at 40°/s (scene.speed)" in r.stderr and "sources.distance" in r.stderr
+
+
+def _tsel(*args):
+    import subprocess
+    import sys
+    return subprocess.run([sys.executable, "-m", "tsel_data.cli", *args], capture_output=True, text=True)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import zlib
+from dataclasses import dataclass
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
@@ -153,29 +154,73 @@ def _pick_interferer(rng, cat: CatalogView, chosen: list[int], query_tokens, max
     )
 
 
+@dataclass(frozen=True)
+class _Want:
+    """What a directional source must be, drawn once per scene and kept through every
+    retry of the geometry: redrawing one of these alone when a layout does not fit would
+    bias its distribution toward what fits (short distances, slow speeds)."""
+
+    distance: float  # m from the array centre
+    height: float  # m above the floor
+    moving: bool
+    kind: str = ""  # PathKind, for a moving source
+    speed: float = 0.0  # °/s great-circle, for a moving source
+
+    def describe(self) -> str:
+        motion = f"a {self.kind} path at {self.speed:g}°/s (scene.speed), " if self.moving else ""
+        return f"{motion}{self.distance:.2f} m from the array (sources.distance), {self.height:.2f} m high"
+
+
+def _wants(cfg: Config, rng, spatial: list[str]) -> list[_Want | None]:
+    out = []
+    for sp in spatial:
+        if sp != Spatial.DIRECTIONAL:
+            out.append(None)
+            continue
+        d, h = float(cfg.sources.distance.sample(rng)), float(cfg.sources.height.sample(rng))
+        mv = _moves(cfg, rng)
+        kind = str(cfg.scene.path.sample(rng)) if mv else ""
+        speed = float(cfg.scene.speed.sample(rng)) if mv else 0.0
+        out.append(_Want(d, h, mv, kind, speed))
+    return out
+
+
+ROOM_TRIES, CENTRE_TRIES, AZIMUTH_TRIES = 10, 10, 50
+
+
 def _place(cfg: Config, rng, spatial: list[str], split: str, index: int):
-    """Room, array pose and each source's placement (Source fields; None for additive)."""
-    rc, ac, srcc = cfg.room, cfg.array, cfg.sources
+    """Room, array pose and each source's placement (Source fields; None for additive).
+
+    Each directional source's distance, height, motion, path kind and speed are drawn
+    first and kept; what is retried until the sources fit (inside the walls' margins,
+    ``scene.min_separation`` apart) is the rest of the geometry: the source's azimuth and
+    path (direction, time of closest approach), the array's place, and the room. So the
+    configured distributions are what the dataset holds, and a setting the rooms cannot
+    hold is an error that names it.
+    """
+    rc, ac = cfg.room, cfg.array
     fmt = cfg.scene.format
-    dims = (float(rc.length.sample(rng)), float(rc.width.sample(rng)), float(rc.height.sample(rng)))
-    room = Room(tuple(round(d, 4) for d in dims), round(float(rc.rt60.sample(rng)), 4))
-    side = round(float(ac.side.sample(rng)), 5) if fmt == "mic4" else None
-    yaw = round(float(ac.yaw.sample(rng)), 4)
-    moving = [sp == Spatial.DIRECTIONAL and _moves(cfg, rng) for sp in spatial]
-    for _ in range(MAX_TRIES // 10):
-        centre = (
-            float(rng.uniform(ac.wall_margin, room.dims[0] - ac.wall_margin)),
-            float(rng.uniform(ac.wall_margin, room.dims[1] - ac.wall_margin)),
-            float(min(ac.height.sample(rng), room.dims[2] - 0.1)),
-        )
-        centre = tuple(round(c, 5) for c in centre)
-        places = _place_sources(cfg, rng, spatial, moving, room, centre, yaw)
-        if places is not None:
-            return room, ArrayPose(fmt, centre, yaw, side), places
+    wants = _wants(cfg, rng, spatial)
+    for _ in range(ROOM_TRIES):
+        dims = (float(rc.length.sample(rng)), float(rc.width.sample(rng)), float(rc.height.sample(rng)))
+        room = Room(tuple(round(d, 4) for d in dims), round(float(rc.rt60.sample(rng)), 4))
+        side = round(float(ac.side.sample(rng)), 5) if fmt == "mic4" else None
+        yaw = round(float(ac.yaw.sample(rng)), 4)
+        for _ in range(CENTRE_TRIES):
+            centre = (
+                float(rng.uniform(ac.wall_margin, room.dims[0] - ac.wall_margin)),
+                float(rng.uniform(ac.wall_margin, room.dims[1] - ac.wall_margin)),
+                float(min(ac.height.sample(rng), room.dims[2] - 0.1)),
+            )
+            centre = tuple(round(c, 5) for c in centre)
+            places = _place_sources(cfg, rng, wants, room, centre, yaw)
+            if places is not None:
+                return room, ArrayPose(fmt, centre, yaw, side), places
+    shown = "; ".join(f"source {k}: {w.describe()}" for k, w in enumerate(wants) if w is not None)
     raise GeometryError(
-        f"scene {split}/{index}: could not place {len(spatial)} sources {srcc.distance.to_json()} m from the "
-        f"array, {cfg.scene.min_separation}° apart, in a {room.dims} m room; widen sources.distance, "
-        f"lower scene.min_separation or the wall margins"
+        f"scene {split}/{index}: could not place its sources ({shown}), {cfg.scene.min_separation}° apart "
+        f"(scene.min_separation), in {ROOM_TRIES} rooms drawn from room.length/width/height; lower "
+        f"scene.min_separation or the settings named, lower the wall margins, or enlarge the rooms"
     )
 
 
@@ -203,33 +248,33 @@ def _separated(az: np.ndarray, placed: list[np.ndarray], sc) -> bool:
     return True
 
 
-def _place_sources(cfg, rng, spatial, moving, room: Room, centre, yaw):
-    srcc, m = cfg.sources, cfg.sources.wall_margin
+def _place_sources(cfg, rng, wants: list, room: Room, centre, yaw):
+    """Every source's place for this room and array position, or None when one does not
+    fit (the caller then draws another position or room)."""
+    m = cfg.sources.wall_margin
     dims = room.dims
     fc = _frame_centres(cfg)
     placed: list[np.ndarray] = []  # azimuth track of each directional source at the label frames
     out = []
-    for sp, mv in zip(spatial, moving):
-        if sp == Spatial.ADDITIVE:
+    for w in wants:
+        if w is None:
             out.append(None)
             continue
-        for _ in range(MAX_TRIES // 4):
-            d = float(srcc.distance.sample(rng))
-            h = float(srcc.height.sample(rng))
-            dz = h - centre[2]
-            if abs(dz) >= d:
-                continue
-            r_h = math.sqrt(d * d - dz * dz)
+        dz = w.height - centre[2]
+        if abs(dz) >= w.distance or not m <= w.height <= dims[2] - m:
+            return None  # no azimuth helps: this array height (or room) cannot hold it
+        r_h = math.sqrt(w.distance ** 2 - dz * dz)
+        for _ in range(AZIMUTH_TRIES):
             az = float(rng.uniform(-180.0, 180.0))
-            if mv:
-                place = _moving_path(cfg, rng, room, centre, yaw, az, r_h, d, h, fc)
+            if w.moving:
+                place = _moving_path(cfg, rng, room, centre, yaw, az, r_h, w, fc)
                 if place is None:
                     continue
                 track = place.pop("_track")
             else:
                 # array frame -> room frame by hand: numpy per point is slower than the maths
                 a = math.radians(az + yaw)
-                p = (centre[0] + r_h * math.cos(a), centre[1] + r_h * math.sin(a), h)
+                p = (centre[0] + r_h * math.cos(a), centre[1] + r_h * math.sin(a), w.height)
                 if not all(m <= p[k] <= dims[k] - m for k in range(3)):
                     continue
                 place = {"position": tuple(round(v, 6) for v in p)}
@@ -247,7 +292,7 @@ def _place_sources(cfg, rng, spatial, moving, room: Room, centre, yaw):
 KNOT_HOP_S, KNOT_STEP_DEG = 0.1, 4.0
 
 
-def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, d: float, h: float, fc: np.ndarray):
+def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want: "_Want", fc: np.ndarray):
     """A simulated moving source at constant height, or None if it leaves the room:
     ``{"path": ((t, x, y, z), ...) room frame, "_track": azimuth (array frame) at the label frames}``.
 
@@ -259,8 +304,7 @@ def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, d: f
     most ω·d/r_h. Knots every min(100 ms, 4° / that azimuth rate): a knot at least every
     100 ms and every 4° of azimuth.
     """
-    kind = cfg.scene.path.sample(rng)  # a PathKind value
-    speed = float(cfg.scene.speed.sample(rng))
+    kind, speed, d, h = want.kind, want.speed, want.distance, want.height
     direction = 1 if rng.random() < 0.5 else -1
     dur = cfg.audio.duration
     az_rate = speed * d / r_h  # °/s of azimuth: the arc's, and the line's at its closest
@@ -307,10 +351,11 @@ def _place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, ba
             out.append(None)
             continue
         mv = _moves(cfg, rng)
+        speed = float(cfg.scene.speed.sample(rng)) if mv else 0.0  # kept through the retries (see _Want)
         for _ in range(MAX_TRIES // 4):
             if mv:
-                tid, idx, times = sample_bank_path(bank, room_name, rng, cfg.audio.duration,
-                                                   float(cfg.scene.speed.sample(rng)), knot_hop=KNOT_HOP_S)
+                tid, idx, times = sample_bank_path(bank, room_name, rng, cfg.audio.duration, speed,
+                                                   knot_hop=KNOT_HOP_S)
             else:
                 tid, i0 = sample_bank_point(bank, room_name, rng)
                 idx, times = np.array([i0]), np.array([0.0])
