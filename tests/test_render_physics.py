@@ -85,3 +85,52 @@ def test_convolve_equals_direct_convolution(length):
         for c in range(3):
             ref = np.convolve(x[s].astype(np.float64), h[s, c].astype(np.float64))[:4000]
             np.testing.assert_allclose(y[s, c], ref, atol=2e-3 * np.abs(ref).max())
+
+
+def _band_coherence(y, a, b, fs, k=4):
+    """Real coherence of channels a, b in bands of k Welch bins (Welch, 256 samples)."""
+    from scipy.signal import csd, welch
+
+    f, sxy = csd(y[a], y[b], fs=fs, nperseg=256)
+    _, sxx = welch(y[a], fs=fs, nperseg=256)
+    _, syy = welch(y[b], fs=fs, nperseg=256)
+    m = len(f) // k * k
+
+    def avg(v):
+        return v[:m].reshape(-1, k).mean(axis=1)
+    return avg(f), np.real(avg(sxy)) / np.sqrt(avg(sxx) * avg(syy))
+
+
+@pytest.mark.parametrize("fmt", ["mic4", "foa"])
+def test_a_diffuse_additive_source_has_diffuse_field_statistics(fmt):
+    """scene.additive = "diffuse": mic4 coherence follows sinc(kd) (the coherent rendering
+    is 1 everywhere); FOA W, Y, Z, X are uncorrelated with energies 1 : 1/3 : 1/3 : 1/3;
+    the clip's timing stays within a label frame."""
+    from tsel_data.acoustics.late import diffuse_coherence, diffuse_filters
+    from tsel_data.geometry import mic4_positions
+    from tsel_data.timevarying import render_static
+
+    fs = 24000
+    rng = np.random.default_rng(0)
+    x = (rng.standard_normal(4 * fs) * np.repeat(np.arange(40) % 4 < 2, fs // 10)).astype(np.float32)
+    pos = mic4_positions(0.12)
+    g = diffuse_filters(fs, np.random.default_rng(1), positions=None if fmt == "foa" else pos, foa=fmt == "foa")
+    y = render_static(x, g)[:, : len(x)]
+    if fmt == "mic4":
+        for a, b in ((0, 1), (0, 2), (1, 3)):
+            f, coh = _band_coherence(y, a, b, fs)
+            band = (f > 100) & (f < 8000)
+            err = np.abs(coh - diffuse_coherence(pos, f)[:, a, b])[band]
+            assert err.mean() < 0.16, (a, b, err.mean())
+            f, coh1 = _band_coherence(np.stack([x, x]), 0, 1, fs)  # what the coherent rendering gives
+            assert np.abs(coh1 - diffuse_coherence(pos, f)[:, a, b])[band].mean() > 0.4
+    else:
+        e = np.mean(y.astype(np.float64) ** 2, axis=1)
+        np.testing.assert_allclose(e[1:] / e[0], 1 / 3, rtol=0.15)
+        c = np.corrcoef(y)
+        assert np.max(np.abs(c[np.triu_indices(4, 1)])) < 0.1
+    # the clip's timing stays: loud in every frame the clip sounds, quiet again one frame
+    # after it stops (the waves' delays spread over 60 ms, less than a 100 ms label frame)
+    energy = np.mean(y.reshape(len(y), 40, -1).astype(np.float64) ** 2, axis=(0, 2)) / np.mean(y.astype(np.float64) ** 2)
+    on = np.arange(40) % 4 < 2
+    assert energy[on].min() > 0.5 and energy[np.arange(40) % 4 == 3].max() < 0.01

@@ -33,6 +33,13 @@ class Scenario(StrEnum):
     DIRECTIONAL_ADDITIVE = "directional+additive"
 
 
+class Additive(StrEnum):
+    """``scene.additive``: how the additive source of ``directional+additive`` is heard."""
+
+    COHERENT = "coherent"
+    DIFFUSE = "diffuse"
+
+
 class Role(StrEnum):
     TARGET = "target"
     INTERFERER = "interferer"
@@ -43,6 +50,7 @@ class Spatial(StrEnum):
 
     DIRECTIONAL = "directional"
     ADDITIVE = "additive"
+    DIFFUSE = "diffuse"
 
 
 class Motion(StrEnum):

@@ -112,8 +112,9 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     for _ in range(n_int):
         chosen.append(_pick_interferer(rng, cat, chosen, cat.tokens[t][q], sc.caption_similarity, split, index))
 
+    additive = Spatial.DIFFUSE if sc.additive == "diffuse" else Spatial.ADDITIVE
     spatial = [Spatial.DIRECTIONAL] + [
-        Spatial.ADDITIVE if (scenario == Scenario.DIRECTIONAL_ADDITIVE and k == 0) else Spatial.DIRECTIONAL
+        additive if (scenario == Scenario.DIRECTIONAL_ADDITIVE and k == 0) else Spatial.DIRECTIONAL
         for k in range(n_int)]
     tir = [None] + [float(sc.tir_db.sample(rng)) for _ in range(n_int)]
     if cat.bank_path:
@@ -347,7 +348,7 @@ def _place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, ba
     placed: list[np.ndarray] = []
     out = []
     for sp in spatial:
-        if sp == Spatial.ADDITIVE:
+        if sp != Spatial.DIRECTIONAL:
             out.append(None)
             continue
         mv = _moves(cfg, rng)

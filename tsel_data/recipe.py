@@ -68,7 +68,8 @@ class Source:
     """One sound event of a scene.
 
     role: ``target`` or ``interferer``. spatial: ``directional`` (rendered through the
-    room) or ``additive`` (added to every channel unspatialised; no position).
+    room), ``additive`` (added to every channel unspatialised; no position) or
+    ``diffuse`` (heard as a diffuse field at the array; no position).
     position: room frame (m) for a static simulated source. path: for a moving simulated
     source, knots ``(t s, x, y, z m)`` in the room frame, linearly interpolated in time.
     bank: for bank-rendered sources, where in the bank (:class:`BankWalk`).

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from .acoustics import simulate_rirs
+from .acoustics.late import diffuse_filters
 from .audio import active_rms, db, frame_activity, load_clip_cached
 from .banks.scenes import open_bank_cached
 from .choices import Spatial
@@ -73,7 +74,8 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
     Static simulated sources share one batched RIR computation and convolution; moving
     and bank sources go through the time-varying renderer (timevarying.py); additive
     sources are the dry clip on every omni channel (FOA: on W only, since equal gains on
-    Y, Z, X would be a direction).
+    Y, Z, X would be a direction); diffuse ones are the clip as a diffuse field
+    (acoustics/late.py, diffuse_filters), drawn from the scene's seed.
     """
     fs, n, fmt = recipe.fs, recipe.n_samples, recipe.array.format
     images = np.zeros((len(recipe.sources), len(CHANNEL_NAMES[fmt]), n), dtype=np.float32)
@@ -91,6 +93,10 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
                 images[k, 0] = dry[k]
             else:
                 images[k] = dry[k]
+        elif s.spatial == Spatial.DIFFUSE:
+            g = diffuse_filters(fs, np.random.default_rng([recipe.seed, k]),
+                                positions=None if fmt == "foa" else recipe.array.mics(), foa=fmt == "foa")
+            images[k] = render_static(dry[k], g)[:, :n]
         elif s.path:
             knots = np.asarray(s.path, dtype=np.float64)
             rs = simulate_rirs(recipe.room, recipe.array, knots[:, 1:], fs, method=recipe.rir_method,

@@ -77,3 +77,42 @@ def _coherence_factor(pos: np.ndarray, n_fft: int, fs: int, coarse: int = 513) -
         for j in range(i + 1):
             out[i, j] = np.interp(f, f_coarse, chol[:, i, j])
     return out
+
+
+DIFFUSE_WAVES = 64  # plane waves that make a diffuse field of a clip
+DIFFUSE_SPREAD = 0.060  # s: their delays spread over this (shorter than a 100 ms label frame)
+
+
+def diffuse_filters(fs: int, rng: np.random.Generator, positions: np.ndarray | None = None,
+                    foa: bool = False) -> np.ndarray:
+    """Filters [C, L] that turn a clip into a diffuse field at the array.
+
+    A diffuse field is many plane waves from all directions with uncorrelated signals
+    (Cook et al. 1955). Here: ``DIFFUSE_WAVES`` directions spread evenly over the sphere
+    (a Fibonacci lattice, randomly turned), each carrying the clip delayed by its own
+    random delay in [0, ``DIFFUSE_SPREAD``) (delayed copies of a sound are uncorrelated
+    with each other) at equal power. Omnis at ``positions`` [C, 3] hear each wave at its
+    plane-wave delay, so their coherence tends to sinc(k d_ij); FOA channels weigh each
+    wave by its ACN/SN3D gains (1, u_y, u_z, u_x), so W, Y, Z, X tend to energies
+    1 : 1/3 : 1/3 : 1/3, uncorrelated. The omni / W filter has unit energy.
+    """
+    n = DIFFUSE_WAVES
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    phi = np.pi * (1.0 + 5.0 ** 0.5) * k + rng.uniform(0.0, 2.0 * np.pi)
+    u = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], axis=1)  # [n, 3]
+    delays = rng.uniform(0.0, DIFFUSE_SPREAD, n)  # s
+    if foa:
+        gains = np.stack([np.ones(n), u[:, 1], u[:, 2], u[:, 0]])  # [4, n]
+        arrive = np.broadcast_to(delays, (4, n))
+    else:
+        pos = np.asarray(positions, dtype=np.float64)
+        gains = np.ones((len(pos), n))
+        arrive = delays[None, :] + (DIFFUSE_SPREAD / 2) - (pos @ u.T) / SOUND_SPEED  # [C, n]: nearer mics earlier
+    n_fft = sfft.next_fast_len(int(np.ceil((DIFFUSE_SPREAD * 2 + 0.01) * fs)) * 2, real=True)
+    f = sfft.rfftfreq(n_fft, 1.0 / fs)
+    spec = np.einsum("cn,cnf->cf", gains / np.sqrt(n), np.exp(-2j * np.pi * f[None, None, :] * arrive[:, :, None]))
+    spec[:, -1] = spec[:, -1].real  # Nyquist bin of a real filter
+    return sfft.irfft(spec, n=n_fft, axis=-1).astype(np.float32)
+
+

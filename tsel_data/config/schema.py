@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-from ..choices import (ArrayFormat, AudioCoding, BadClipPolicy, CheckLevel, CorpusFormat, Motion, PathKind,
+from ..choices import (Additive, ArrayFormat, AudioCoding, BadClipPolicy, CheckLevel, CorpusFormat, Motion, PathKind,
                        RirMethod, Scenario, values)
 from ..distributions import Dist
 from ..jsonable import jsonable
@@ -92,6 +92,12 @@ class SceneConfig:
     scenario: Dist = dist(["choose", ["two-directional"]],
                           "`two-directional`, or `directional+additive` (the first interferer added to every "
                           "channel unspatialised), or a `choose` of both", choices=Scenario)
+    additive: str = option("coherent", "how the additive source of `directional+additive` is heard: `coherent` "
+                                       "(the paper's: the dry clip on every mic channel, on W only for FOA; to a "
+                                       "planar array a source straight overhead) or `diffuse` (a diffuse field at "
+                                       "the array: mic coherence sinc(kd), FOA W:Y:Z:X energies 1:1/3:1/3:1/3, "
+                                       "uncorrelated; docs/acoustics.md); its level is defined the same way",
+                           choices=Additive)
     interferers: Dist = dist(1, "interferers per scene (a distribution is allowed); in `directional+additive` the "
                                 "first is additive", unit="sources", ge=1, why="a scene holds at least two sources",
                      integer=True)
