@@ -141,8 +141,8 @@ def _plan_locked(cfg: Config, layout: Layout, workers: int, resume: bool) -> dic
             raise DatasetError(f"{out_dir} was planned with a different config; --resume needs the same "
                                f"config, seed and splits (compare with {layout.config_file})")
         return {s: sp.count for s, sp in cfg.splits.items()}
-    check_space(cfg, layout)
     catalog, views = prepare_views(cfg, layout, workers)
+    check_space(cfg, layout)  # after the corpus: what is wrong with the inputs is said first
     write_bad_clips(layout.bad_clips_file, catalog.bad)
     counts = {}
     for split, sp in cfg.splits.items():

@@ -118,9 +118,9 @@ def shard_state(layout: Layout, split: str, shard: int, fingerprint: str, deep: 
         return ("missing", "not rendered") if not any(have) else ("damaged", "no seal (an interrupted write)")
     if seal.fingerprint != fingerprint:
         return "stale", "made from another plan, or from clips or a bank that changed since"
+    if not all(have):  # a file of a sealed shard was deleted: render it (again)
+        return "missing", "a file is missing"
     for path, fs in ((h5, seal.h5), (js, seal.json)):
-        if not os.path.isfile(path):
-            return "damaged", f"{os.path.basename(path)} is missing"
         if (deep or not fs.unchanged(path)) and sha256_file(path) != fs.sha256:
             return "damaged", f"{os.path.basename(path)} changed since it was written (sha256 differs from its seal)"
     return "complete", ""
