@@ -128,15 +128,23 @@ def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: Chec
         rep.error(e)
         return {}
     rep.facts["corpus_dir"] = corpus_dir if cfg.corpus.dir != BUILTIN_DEMO else BUILTIN_DEMO
-    scan = scan_catalog(cfg, corpus_dir, workers)
+    scan = scan_catalog(cfg, corpus_dir, workers, progress=None)  # bars only on a terminal
     for e in scan.problems:
         rep.error(e)
     for b in scan.bad:
         rep.bad_clips.append(b.to_json())
         if cfg.on_bad_clip == "skip":
             rep.warnings.append(f"{b.origin}: clip {b.clip_id}: {b.problem} (skipped: on_bad_clip = \"skip\")")
+    for split, clips in scan.missing.items():
+        if clips and cfg.on_bad_clip == "skip":
+            # a partial download is normal: one line per split, not one per absent file
+            rep.warnings.append(f"split {split}: {len(clips):,} of {scan.counts[split]['clips']:,} audio files are "
+                                f"missing from {scan.audio_dirs[split]} (first: {os.path.basename(clips[0].audio)}, "
+                                f"{clips[0].origin}); those clips are skipped and listed in OUT/missing_clips.json")
+    rep.warnings += scan.warnings
     for split, c in scan.counts.items():
-        rep.facts["splits"][split].update(clips=c["clips"], bad=c["bad"], policy=cfg.on_bad_clip)
+        rep.facts["splits"][split].update(clips=c["clips"], missing=c["missing"], bad=c["bad"],
+                                          policy=cfg.on_bad_clip)
     return scan.clips
 
 
