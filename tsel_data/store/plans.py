@@ -48,10 +48,14 @@ def shard_complete(layout: Layout, task: ShardTask) -> bool:
     return os.path.isfile(h5) and os.path.isfile(js)
 
 
-def plan_doc(config: dict, clips: dict[str, int], bad_clips: int) -> dict:
+def plan_doc(config: dict, clips: dict[str, int], bad_clips: int, missing_clips: dict[str, int] | None = None) -> dict:
     """The document of ``plan/config.json``: tool, version, the resolved config as plain
-    data, usable clips per split and the number of bad clips."""
-    return {"tool": "tsel-data", "version": __version__, "config": config, "clips": clips, "bad_clips": bad_clips}
+    data, usable clips per split, the number of bad clips and, when audio files are
+    missing, how many per split."""
+    doc = {"tool": "tsel-data", "version": __version__, "config": config, "clips": clips, "bad_clips": bad_clips}
+    if missing_clips:
+        doc["missing_clips"] = missing_clips
+    return doc
 
 
 def has_plan(layout: Layout) -> bool:
@@ -87,6 +91,15 @@ def stored_config(layout: Layout) -> dict | None:
 def read_split_plan(layout: Layout, split: str) -> list[SceneRecipe]:
     """Every recipe of a split's plan file."""
     return read_plan(layout.plan_file(split))
+
+
+def read_plan_lines(layout: Layout, split: str) -> list[str]:
+    """The recipe lines of a split's plan file as written (none when there is no file)."""
+    path = layout.plan_file(split)
+    if not os.path.isfile(path):
+        return []
+    with open(path, encoding="utf-8") as f:
+        return [line.rstrip("\n") for line in f if line.strip()]
 
 
 def plan_ids(layout: Layout, split: str) -> list[str] | None:
