@@ -30,6 +30,7 @@ import numpy as np
 from .audio import save_wav
 from .choices import WavSubtype, values
 from .errors import DatasetError, TselError
+from .progress import bar
 from .store.reader import list_splits, open_dataset
 
 CLASSES = {0: "target", 1: "interferer"}
@@ -68,11 +69,12 @@ def _round_half_up(x) -> np.ndarray:
     return np.floor(np.asarray(x, dtype=np.float64) + 0.5).astype(np.int64)
 
 
-def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", progress=None) -> dict:
+def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", progress: bool | None = False) -> dict:
     """Write the DCASE layout of ``splits`` (default: all) under ``out``; returns a summary.
 
     subtype: WAV sample format (``PCM_16`` as STARSS23, which the baselines scale by
-    1/32768; ``PCM_24``; ``FLOAT``). PCM needs every sample in [-1, 1).
+    1/32768; ``PCM_24``; ``FLOAT``). PCM needs every sample in [-1, 1). progress: a bar
+    per split (None: when stderr is a terminal).
     """
     if subtype not in SUBTYPES:
         raise TselError(f"unknown WAV subtype {subtype!r}; choose one of {', '.join(SUBTYPES)}")
@@ -97,6 +99,7 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
             os.makedirs(audio_dir, exist_ok=True)
             os.makedirs(meta_dir, exist_ok=True)
             n_rows = 0
+            b = bar(n_scenes, f"export {split}", "scene", progress)
             for scene in ds:
                 name = f"fold{fold}_{scene.scene_id}"
                 peak = float(np.max(np.abs(scene.audio))) if scene.audio.size else 0.0
@@ -109,8 +112,8 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
                     csv.writer(f, lineterminator="\n").writerows(rows)
                 n_rows += len(rows)
                 query_rows.append((fold, split, name, scene.scene_id, scene.query))
-                if progress:
-                    progress(scene)
+                b.update()
+            b.close()
         summary["splits"][split] = {"fold": fold, "scenes": n_scenes, "rows": n_rows, "audio_dir": audio_dir,
                                     "metadata_dir": meta_dir}
         summary["rows"] += n_rows

@@ -25,6 +25,11 @@ def bar(total: int | None, desc: str, unit: str, show: bool | None = True, initi
         Units already done (a resumed job).
     """
     if show is None:
-        show = sys.stderr.isatty()
+        show = on_terminal()
     return tqdm(total=total, initial=initial, desc=desc, unit=unit, disable=not show, dynamic_ncols=True,
                 mininterval=0.5, file=sys.stderr)
+
+
+def on_terminal() -> bool:
+    """Whether stderr is a terminal (a person watching, not a log file)."""
+    return sys.stderr.isatty()

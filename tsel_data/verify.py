@@ -26,6 +26,7 @@ import numpy as np
 
 from .features import mic_pairs, stft
 from .geometry import SOUND_SPEED, azimuth_difference, circular_mean, sph_to_cart, wrap_azimuth
+from .progress import bar
 from .store.reader import list_splits, open_dataset
 
 _EPS = 1e-12
@@ -224,17 +225,20 @@ class VerifyReport:
 
 
 def verify_dataset(root: str, splits=None, tolerance: float = 20.0, min_frames: int = 3,
-                   max_scenes: int | None = None, progress=None) -> VerifyReport:
-    """Run :func:`verify_scene` on every scene (or the first ``max_scenes``) of each split."""
+                   max_scenes: int | None = None, progress: bool | None = False) -> VerifyReport:
+    """Run :func:`verify_scene` on every scene (or the first ``max_scenes``) of each split.
+
+    ``progress``: a bar per split (None: when stderr is a terminal).
+    """
     report = VerifyReport(tolerance)
     for split in (list(splits) if splits else list_splits(root)):
         with open_dataset(root, split) as ds:
             n = len(ds) if max_scenes is None else min(len(ds), max_scenes)
             res = []
-            for i in range(n):
-                res.append(verify_scene(ds[i], tolerance, min_frames))
-                if progress:
-                    progress(res[-1])
+            with bar(n, f"verify {split}", "scene", progress) as b:
+                for i in range(n):
+                    res.append(verify_scene(ds[i], tolerance, min_frames))
+                    b.update()
         tested = [r for r in res if r["status"] != "untested"]
         errors = [src["error"] for r in tested for src in r["sources"]]
         agree = sum(r["status"] == "agree" for r in tested)
