@@ -3,6 +3,8 @@ import json
 
 import click
 
+from .options import note_unfinished
+
 
 @click.command("verify")
 @click.argument("dataset_dir", type=click.Path(file_okay=False))
@@ -18,6 +20,7 @@ def verify_cmd(ctx, dataset_dir, splits, tolerance, max_scenes, fail_under, as_j
     """Agreement of labels with SRP-PHAT (mic arrays) or the intensity vector (FOA), per split."""
     from ..verify import verify_dataset
 
+    note_unfinished(dataset_dir)
     report = verify_dataset(dataset_dir, splits or None, tolerance=tolerance, max_scenes=max_scenes,
                             progress=False if quiet else None)
     click.echo(json.dumps(report.to_dict(), indent=1) if as_json else report.format_text())

@@ -12,8 +12,10 @@ import os
 from dataclasses import dataclass
 
 from ..errors import DatasetError
+from ..geometry import CHANNEL_NAMES
 from ..recipe import SceneRecipe, read_plan
 from ..version import __version__
+from .dataset import DatasetDoc, ShardEntry
 from .layout import CONFIG_FILE, Layout, shard_names
 
 
@@ -109,3 +111,30 @@ def plan_ids(layout: Layout, split: str) -> list[str] | None:
         return None
     with open(path, encoding="utf-8") as f:
         return [json.loads(line)["scene_id"] for line in f if line.strip()]
+
+
+def unfinished_doc(layout: Layout) -> DatasetDoc:
+    """A :class:`~tsel_data.store.dataset.DatasetDoc` of the shards finished so far, for
+    a dataset still being made (a plan, no ``dataset.json``): every shard whose two files
+    exist under their final names (the writer renames them last), with the index of its
+    first scene, so tools can read them while the rest renders."""
+    doc = read_plan_doc(layout)
+    cfg = doc["config"]
+    try:
+        size = int(cfg["output"]["shard_size"])
+        counts = {s: int(v.get("count", 0)) for s, v in cfg["splits"].items() if v.get("count")}
+        fs, hop, fmt = int(cfg["audio"]["fs"]), float(cfg["audio"]["label_hop"]), str(cfg["scene"]["format"])
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise DatasetError(f"{layout.config_file} is incomplete ({type(e).__name__}: {e}); plan again into a new "
+                           f"--out") from None
+    tasks = shard_tasks(counts, size)
+    splits: dict[str, list[ShardEntry]] = {s: [] for s in counts}
+    for t in tasks:
+        if shard_complete(layout, t):
+            h5, js = t.files
+            splits[t.split].append(ShardEntry(h5, js, t.stop - t.start, first=t.start))
+    return DatasetDoc(path=layout.config_file, fs=fs, label_hop=hop, format=fmt,
+                      channel_names=list(CHANNEL_NAMES.get(fmt, ())), config=cfg, splits=splits,
+                      counts={s: sum(e.scenes for e in v) for s, v in splits.items()},
+                      raw={"seed": cfg.get("seed", 0), "config": cfg}, finished=False, planned=counts,
+                      shards_planned=len(tasks))
