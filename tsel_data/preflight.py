@@ -22,7 +22,7 @@ from .catalog import BUILTIN_DEMO, resolve_corpus_dir, scan_catalog
 from .config import Config, config_problems, geometry_problems, rooms_without_bank
 from .errors import DatasetError, TselError
 from .geometry import CHANNEL_NAMES
-from .pipeline import planned_with
+from .pipeline import plan_differences, planned_with
 from .plan import CatalogView, bank_request, plan_split_json
 from .report import CheckReport
 from .store.layout import Layout
@@ -92,8 +92,13 @@ def _check_out_dir(cfg: Config, out_dir: str, rep: CheckReport) -> None:
     layout = Layout(out_dir)
     state = planned_with(layout, cfg)
     if state == "different":
-        rep.error(DatasetError(f"{out_dir} was planned with a different config ({layout.config_file}); choose "
-                               f"another --out, or use the same config to --resume"))
+        try:
+            keys = "; ".join(str(d) for d in plan_differences(layout, cfg)[:4])
+        except TselError:
+            keys = "its config is unreadable"
+        rep.error(DatasetError(f"{out_dir} was planned with a different config ({layout.config_file}: {keys}); "
+                               f"choose another --out, use the same config to --resume, or --grow if only "
+                               f"splits.NAME.count grew"))
     elif state == "same" and os.path.isfile(layout.dataset_file):
         rep.warnings.append(f"{out_dir} already holds this finished dataset; `tsel check {out_dir}` verifies it")
     elif state == "same":
