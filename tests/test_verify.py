@@ -50,6 +50,12 @@ def _replace_target(s, signal):
     return s
 
 
+def test_all_labels_rotated_agree_on_no_judged_scene(tmp_path):
+    make_dataset(tmp_path, fmt="foa", splits={"train": 4}, seed=4, rotate={f"train-00000{i}": 90.0 for i in range(4)})
+    sp = verify_dataset(str(tmp_path)).splits["train"]
+    assert sp["tested"] == 4 and sp["agree"] == 0 and sp["median_error"] > 70
+
+
 def test_a_source_that_never_plays_alone_is_not_judged(tmp_path):
     from tsel_data.verify import verify_scene
 
