@@ -139,9 +139,20 @@ class Sandbox:
         return self.back(r.stdout).rstrip()
 
 
-def run_pages(root: Path, pages=PAGES, check: bool = False) -> list[str]:
-    """Run every example of ``pages`` in a sandbox under ``root``; rewrite the pages'
-    shown outputs (or, with ``check``, return one message per output that differs)."""
+def run_pages(pages=PAGES, check: bool = False) -> list[str]:
+    """Run every example of ``pages`` in a new sandbox; rewrite the pages' shown outputs
+    (or, with ``check``, return one message per output that differs).
+
+    The sandbox is a fresh ``tempfile.mkdtemp`` folder: its path has the same length on
+    every run, and datasets store absolute clip paths, so sizes on disk compare."""
+    root = Path(tempfile.mkdtemp(prefix="tsel-doc-"))
+    try:
+        return _run_pages(root, pages, check)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+def _run_pages(root: Path, pages, check: bool) -> list[str]:
     box = Sandbox(root)
     stale = []
     wanted = set(pages)
@@ -178,8 +189,7 @@ def main(argv=None) -> int:
     ap.add_argument("--check", action="store_true", help="report stale outputs instead of rewriting them")
     ap.add_argument("pages", nargs="*", help=f"pages to run (default: {', '.join(PAGES)})")
     args = ap.parse_args(argv)
-    with tempfile.TemporaryDirectory(prefix="tsel-doc-examples-") as tmp:
-        stale = run_pages(Path(tmp), args.pages or PAGES, check=args.check)
+    stale = run_pages(args.pages or PAGES, check=args.check)
     for s in stale:
         print(s, end="\n\n")
     print(f"{len(stale)} stale output(s)" if args.check else "outputs rewritten")
