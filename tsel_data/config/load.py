@@ -71,7 +71,7 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
         layers.append((f"preset {preset}", _parse_toml(preset_text(preset), f"preset {preset}")))
     if path:
         layers.append((path, _read_user_file(path)))
-    layers += [(f"--set {ov.strip()}", _parse_override(ov)) for ov in overrides]
+    layers += [(f"--set {_printable(ov.strip())}", _parse_override(ov)) for ov in overrides]
     if corpus_dir:
         layers.append(("--corpus-dir", {"corpus": {"dir": corpus_dir}}))
     if bank:
@@ -165,6 +165,11 @@ def _parse_override(ov: str) -> dict:
         node = node.setdefault(p, {})
     node[parts[-1]] = parsed
     return out
+
+
+def _printable(text: str) -> str:
+    """``text`` with control characters escaped, so a label keeps an error on one line."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def _leaf_keys(table, prefix: str = ""):
