@@ -46,7 +46,7 @@ def import_tau(src, out, rooms, fmt):
 def _write_with_bar(out, b, rooms, provenance):
     """write_bank with a bar counting RIRs (a TAU room is thousands, read trajectory by
     trajectory); on a terminal only."""
-    from ..banks.native import write_bank
+    from ..banks.native import write_bank  # as every command: its library module when it runs
     from ..progress import bar
 
     names = [b.resolve_room(r) for r in rooms] if rooms else list(b.rooms)
@@ -130,7 +130,7 @@ def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side,
                             f"{', '.join(given)} or --demo")
         kw.update({k: v for k, v in DEMO.items() if k != "n_rooms"})
         n_rooms = DEMO["n_rooms"]
-    from ..progress import bar
+    from ..progress import bar  # tqdm: only for the commands that show a bar
 
     with bar(n_rooms, "simulate", "room", None) as shown:  # on a terminal only
         path = build_bank(out, format=fmt, n_rooms=n_rooms, seed=seed, progress=lambda _room: shown.update(), **kw)

@@ -18,7 +18,7 @@ from .options import note_unfinished
 def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems):
     """Show SCENE of DATASET_DIR: a scene id (test-000003) or SPLIT/INDEX (test/3)."""
     from ..errors import TselError
-    from ..inspect import inspect_scene, stereo_path
+    from ..inspect import inspect_scene, stereo_path  # h5py and matplotlib: only when inspect runs
 
     note_unfinished(dataset_dir)
     found, text = inspect_scene(dataset_dir, scene, split=split, png=png, wav=wav)

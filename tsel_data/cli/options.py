@@ -59,7 +59,7 @@ def executor_options(f):
 def note_unfinished(dataset_dir: str) -> None:
     """Say on stderr when a read-only tool looks at a dataset still being made (it then
     reads the shards finished so far)."""
-    from ..store.reader import dataset_doc
+    from ..store.reader import dataset_doc  # h5py: loaded by the commands that read datasets only
 
     note = dataset_doc(dataset_dir, unfinished=True).unfinished_note(dataset_dir)
     if note:
