@@ -149,8 +149,9 @@ def split_audio_dir(cfg: Config, split: str, corpus_dir: str) -> str:
     return d
 
 
-def read_split_clips(cfg: Config, split: str, corpus_dir: str) -> list[Clip]:
-    """Every clip of a split's manifest, unchecked.
+def read_split_clips(cfg: Config, split: str, corpus_dir: str, audio_dir: str | None = None) -> list[Clip]:
+    """Every clip of a split's manifest, unchecked (``audio_dir``: the split's audio
+    folder, :func:`split_audio_dir` when not given).
 
     A manifest whose rows name their split (a plain manifest's ``split`` column) gives
     each split its own rows, so one file can serve several splits; a row without a split
@@ -164,8 +165,8 @@ def read_split_clips(cfg: Config, split: str, corpus_dir: str) -> list[Clip]:
     opts = {"split": None if shared else split}
     if cfg.corpus.audio_template:
         opts["template"] = cfg.corpus.audio_template
-    clips = read_manifest(path, format=cfg.corpus.format, audio_dir=split_audio_dir(cfg, split, corpus_dir),
-                          **opts)
+    audio_dir = audio_dir or split_audio_dir(cfg, split, corpus_dir)
+    clips = read_manifest(path, format=cfg.corpus.format, audio_dir=audio_dir, **opts)
     if shared:
         untagged = next((c for c in clips if c.split is None), None)
         if untagged is not None:
@@ -203,8 +204,8 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
     seen: dict = {}
     for split in cfg.active_splits():
         try:
-            clips = read_split_clips(cfg, split, corpus_dir)
             scan.audio_dirs[split] = split_audio_dir(cfg, split, corpus_dir)
+            clips = read_split_clips(cfg, split, corpus_dir, scan.audio_dirs[split])
         except TselError as e:
             scan.problems.append(e)
             continue
