@@ -1,10 +1,13 @@
 import os
+import tempfile
 
 import pytest
 
 # keep numerical libraries to one thread: the suite runs on 2 cores
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "PRA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
+# remembered clip checks go to a folder of this run, not the user's cache (subprocesses inherit it)
+os.environ.setdefault("TSEL_CACHE_DIR", tempfile.mkdtemp(prefix="tsel-test-cache-"))
 
 
 @pytest.fixture(scope="session")

@@ -157,7 +157,8 @@ MANIFEST_DEFECTS = {
                       ["train.csv:5", "empty caption", "write the caption or delete the row"]),
     "empty-manifest": (lambda c: _rewrite_csv(c, "train", b"audiocap_id,youtube_id,start_time,caption\n"),
                        ["train.csv", "no caption rows", "(the manifest is empty)"]),
-    "missing-manifest": (lambda c: os.remove(os.path.join(c, "train.csv")), ["train.csv", "manifest file not found"]),
+    "missing-manifest": (lambda c: os.remove(os.path.join(c, "train.csv")),
+                         ["splits.train.manifest: train.csv not found in", "corpus (it holds test.csv, val.csv)"]),
 }
 
 DEFECTS = {**{k: (lambda c, f=f: f(_wav(c, "dogA")), ["train.csv:2", "dogA", *n, "fix or remove it"])
@@ -357,9 +358,14 @@ def test_bad_clip_policy_skip_and_fail(tmp_path):
         ["check", *base])
     # skip: the run completes, every bad clip is listed with its reason, the summary counts them
     assert skip.returncode == 0, skip.stderr
-    assert "7 bad clips skipped (see bad_clips.jsonl)" in skip.stdout
+    # a missing file is a partial download, not a bad clip: counted and listed apart
+    assert "6 bad clips skipped (see bad_clips.jsonl), 1 clips missing (see missing_clips.json)" in skip.stdout
+    assert "train: 10 of 11 clips present (90.9 %), 6 of them bad" in skip.stdout
+    missing = json.load(open(tmp_path / "skip" / "missing_clips.json", encoding="utf-8"))
+    assert missing == {"splits": {"train": {"listed": 11, "missing": 1, "audio_dir": os.path.join(corpus, "audio"),
+                                            "clip_ids": ["dogA_0"]}}}
     bad = [json.loads(line) for line in open(tmp_path / "skip" / "bad_clips.jsonl", encoding="utf-8")]
-    assert {b["clip_id"]: b["split"] for b in bad} == {f"{c}_0": "train" for c in POLICY_DEFECTS}
+    assert {b["clip_id"]: b["split"] for b in bad} == {f"{c}_0": "train" for c in POLICY_DEFECTS if c != "dogA"}
     for b in bad:
         for needle in CLIP_DEFECTS[POLICY_DEFECTS[b["clip_id"][:-2]]][1]:
             assert needle in b["problem"], b
@@ -368,7 +374,7 @@ def test_bad_clip_policy_skip_and_fail(tmp_path):
     for cid in POLICY_DEFECTS:
         assert f'"{cid}_0"' not in plan  # no scene uses a bad clip
     doc = json.load(open(tmp_path / "skip" / "plan" / "config.json"))
-    assert doc["bad_clips"] == 7
+    assert doc["bad_clips"] == 6 and doc["missing_clips"] == {"train": 1}
     # fail: stops before rendering with the first bad clip, the count of the others, and the fix
     line = assert_one_line_error(fail, "train.csv:2", "dogA", "(and 6 more", 'on_bad_clip = "skip"')
     assert "audio file not found" in line
@@ -377,8 +383,9 @@ def test_bad_clip_policy_skip_and_fail(tmp_path):
     # check under skip: exit 0, one warning per bad clip, the count in the summary
     assert chk_skip.returncode == 0, chk_skip.stderr
     warnings = [w for w in chk_skip.stderr.splitlines() if w.startswith("warning:")]
-    assert len(warnings) == 7 and all('skipped: on_bad_clip = "skip"' in w for w in warnings)
-    assert "7 bad (skip)" in chk_skip.stdout
+    assert len(warnings) == 7 and sum('skipped: on_bad_clip = "skip"' in w for w in warnings) == 6
+    assert any("split train: 1 of 11 audio files are missing" in w and "missing_clips.json" in w for w in warnings)
+    assert "train: 11 clips (10 present, 90.9 %), 6 bad (skip), 4 scenes planned" in chk_skip.stdout
 
 
 def test_nan_clip_never_reaches_a_scene(tmp_path):

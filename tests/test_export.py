@@ -83,3 +83,43 @@ def test_pcm_and_cli(exported, tmp_path):
     assert info.subtype == "PCM_16" and info.channels == 4
     res = CliRunner().invoke(export_cmd, ["dcase", str(root), "--out", str(tmp_path / "o2"), "--split", "val"])
     assert isinstance(res.exception, TselError) and "available splits: train, test" in str(res.exception)
+
+
+def test_exporting_a_split_into_an_export_merges_it(tmp_path):
+    root = tmp_path / "ds"
+    make_dataset(root, splits={"train": 3, "val": 1, "test": 2})
+    out = tmp_path / "dcase"
+    export_dcase(str(root), str(out), splits=["train"], subtype="FLOAT")
+    export_dcase(str(root), str(out), splits=["test"], subtype="FLOAT")
+    export_dcase(str(root), str(out), splits=["train"], subtype="FLOAT")  # again: replaces, no duplicates
+    with open(out / "queries.csv", newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == ["fold", "split", "file", "scene_id", "query"]
+    assert [(r[0], r[3]) for r in rows[1:]] == [("1", "train-000000"), ("1", "train-000001"), ("1", "train-000002"),
+                                                ("3", "test-000000"), ("3", "test-000001")]
+    assert json.loads((out / "classes.json").read_text())["folds"] == {"train": 1, "test": 3}
+    # a dataset that shrank leaves no stale files behind
+    make_dataset(root, splits={"train": 1, "val": 1, "test": 2})
+    export_dcase(str(root), str(out), splits=["train"], subtype="FLOAT")
+    assert sorted(p.name for p in (out / "mic_dev" / "dev-train-tsel").iterdir()) == ["fold1_train-000000.wav"]
+    assert sorted(p.name for p in (out / "metadata_dev" / "dev-train-tsel").iterdir()) == ["fold1_train-000000.csv"]
+
+
+def test_exporting_into_an_export_of_something_else_is_refused(tmp_path, capsys):
+    a, b = tmp_path / "a", tmp_path / "b"
+    make_dataset(a, splits={"train": 2, "test": 1})
+    make_dataset(b, splits={"train": 2, "test": 1}, fmt="foa")
+    out = tmp_path / "dcase"
+    export_dcase(str(a), str(out), splits=["train"], subtype="FLOAT")
+    with pytest.raises(DatasetError) as e:
+        export_dcase(str(b), str(out), splits=["test"], subtype="FLOAT")
+    assert str(e.value) == (f"{out} holds an export of another dataset {a} (now {b}), format mic4 (now foa); adding "
+                            f"this one would mix them: export into another --out")
+    with pytest.raises(DatasetError, match=r"another WAV subtype FLOAT \(now PCM_16\)"):
+        export_dcase(str(a), str(out), splits=["test"], subtype="PCM_16")
+    from tsel_data.cli import main
+
+    with pytest.raises(SystemExit) as ex:
+        main(["export", "dcase", str(b), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert ex.value.code == 2 and err.count("\n") == 1 and err.startswith(f"error: {out} holds an export of another")

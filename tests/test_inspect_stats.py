@@ -113,3 +113,112 @@ def test_tools_close_their_files_even_when_they_fail(ds):
         find_scene(root, "test/99")
     assert bad_predictions.tb is not None and bad_index.tb is not None  # both frames still alive
     assert open_files() == before
+
+
+# --- looking and listening (issue 16) ---------------------------------------------------------------------------------
+
+
+def test_frame_segments_show_sparse_activity_and_do_not_jump_at_the_wrap():
+    from tsel_data.inspect import frame_runs, frame_segments, wrap_breaks
+
+    hop = 0.1
+    active = np.zeros(20, bool)
+    active[[3, 9, 10, 11]] = True  # a tick in one frame, then three frames
+    x, y = frame_segments(np.full(20, 40.0), active, hop)
+    assert frame_runs(active) == [(3, 1), (9, 3)]
+    strokes = np.split(x, np.flatnonzero(np.isnan(x)))
+    assert np.allclose(strokes[0], [0.3, 0.35, 0.4])  # the single frame is drawn its whole width
+    assert np.allclose(strokes[1][~np.isnan(strokes[1])], [0.9, 0.95, 1.05, 1.15, 1.2])
+    # a moving source crossing ±180°: no drawn step is longer than 180° (no vertical line)
+    az = ((np.arange(20) * 25.0 + 180.0) % 360.0) - 180.0
+    x, y = frame_segments(az, np.ones(20, bool), hop)
+    ok = ~np.isnan(y[:-1]) & ~np.isnan(y[1:])
+    assert np.all(np.abs(np.diff(y))[ok] <= 25.0 + 1e-9) and np.isnan(y).any()
+    t, a = wrap_breaks(np.arange(20) * hop, az)
+    ok = ~np.isnan(a[:-1]) & ~np.isnan(a[1:])
+    assert np.all(np.abs(np.diff(a))[ok] <= 25.0 + 1e-9)
+
+
+def test_summary_lists_every_caption(ds):
+    root, _ = ds
+    from tsel_data.inspect import summary
+
+    scene = find_scene(root, "train/0")
+    object.__setattr__(scene.record.sources[0], "captions", [f"caption number {k}" for k in range(5)])
+    text = summary(scene)
+    assert all(f"caption: caption number {k}" in text for k in range(5))
+
+
+def test_stereo_preview_of_each_format():
+    from tsel_data.geometry import foa_gains
+    from tsel_data.stereo import stereo_preview
+
+    sig = np.ones(8, np.float32)
+    left_src = foa_gains(90.0, 0.0)[:, None] * sig  # a plane wave from the left
+    front_src = foa_gains(0.0, 0.0)[:, None] * sig
+    lr = stereo_preview(left_src, "foa")
+    assert lr.shape == (2, 8) and np.allclose(lr[0], 1.0) and np.allclose(lr[1], 0.0)
+    assert np.allclose(stereo_preview(front_src, "foa"), 0.5)  # in front: both ears alike
+    mics = np.arange(4, dtype=np.float32)[:, None] * sig
+    assert np.allclose(stereo_preview(mics, "mic4")[:, 0], [0, 3])  # front-left, front-right
+    assert np.allclose(stereo_preview(mics, "tetra")[:, 0], [0, 1])
+    assert stereo_preview(np.zeros((3, 4, 8)), "foa").shape == (3, 2, 8)
+
+
+def test_inspect_writes_the_headphone_preview(ds, tmp_path):
+    root, written = ds
+    inspect_scene(root, "train/0", wav=str(tmp_path / "a.wav"))
+    stereo, fs = sf.read(tmp_path / "a.stereo.wav", dtype="float32")
+    w = written["train"][0]
+    assert stereo.shape == (w.audio.shape[1], 2) and fs == 16000
+    np.testing.assert_array_equal(stereo[:, 0], w.audio[0])  # mic4: the front pair
+    np.testing.assert_array_equal(stereo[:, 1], w.audio[3])
+
+
+def test_stats_motion_and_speed(ds, tmp_path):
+    from tsel_data.stats import angular_speed, plot_stats
+
+    root, written = ds
+    st = dataset_stats(str(root))
+    tr = st["train"]
+    # the fixture's moving target turns 60° over 20 frames of 0.1 s at 10° elevation
+    speed = 60.0 / 19 / 0.1 * np.cos(np.radians(10.0))
+    assert tr["moving_sources"]["speed_deg_s"]["n"] == 1
+    assert tr["moving_sources"]["speed_deg_s"]["median"] == pytest.approx(speed, rel=1e-3)
+    assert tr["moving_sources"]["scenes"] == {"static": 3, "target": 1}
+    assert angular_speed([0, 90, 180], [0, 0, 0], 1.0) == pytest.approx(90.0)
+    assert tr["target_elevation_deg"]["mean"] == pytest.approx(10.0)
+    plot_stats(st, str(tmp_path / "s.png"))
+    assert (tmp_path / "s.png").read_bytes()[:8] == PNG_MAGIC
+
+
+def test_tools_read_the_finished_shards_of_a_dataset_still_being_made(ds, tmp_path, capsys):
+    import shutil
+
+    from tsel_data.cli import main
+    from tsel_data.store.plans import plan_doc
+
+    root, written = ds
+    part = tmp_path / "part"
+    shutil.copytree(root, part)
+    os_remove = __import__("os").remove
+    os_remove(part / "dataset.json")  # not finished: a plan, some shards
+    os_remove(part / "train" / "shard-00000.h5")
+    config = {"audio": {"fs": 16000, "duration": 2.0, "label_hop": 0.1}, "scene": {"format": "mic4"},
+              "output": {"shard_size": 2}, "splits": {"train": {"count": 4}, "test": {"count": 2}}, "seed": 0}
+    (part / "plan").mkdir()
+    (part / "plan" / "config.json").write_text(json.dumps(plan_doc(config, {}, 0)))
+    with pytest.raises(DatasetError, match="not a tsel-data dataset"):
+        __import__("tsel_data").open_dataset(str(part), "train")  # trainers read finished datasets only
+    scene = find_scene(str(part), "train/3")
+    assert scene.scene_id == "train-000003" and scene.index == 3
+    with pytest.raises(DatasetError, match=r"'train/1' is not rendered yet"):
+        find_scene(str(part), "train/1")
+    assert dataset_stats(str(part))["train"]["scenes"] == 2
+    for args in (["inspect", part, "train/2"], ["stats", part], ["verify", part, "--quiet"]):
+        with pytest.raises(SystemExit) as e:
+            main([str(a) for a in args])
+        out = capsys.readouterr()
+        assert e.value.code == 0, out.err
+        assert out.err.startswith(f"note: {part} is still being made (no dataset.json yet): 2 of 3 shards finished, "
+                                  f"train 2 of 4, test 2 of 2 scenes; showing those")

@@ -167,6 +167,8 @@ def test_missing_audio_is_reported(demo_corpus, tmp_path):
     assert r.returncode == 2 and victim in r.stderr and "not found" in r.stderr
     r = _tsel(*args, "--out", str(tmp_path / "b"))
     assert r.returncode == 0, r.stderr
-    assert "1 bad clips skipped" in r.stdout
-    bad = [json.loads(x) for x in open(tmp_path / "b" / "bad_clips.jsonl")]
-    assert len(bad) == 1 and victim in bad[0]["problem"]
+    assert "0 bad clips skipped, 1 clips missing (see missing_clips.json)" in r.stdout
+    assert not open(tmp_path / "b" / "bad_clips.jsonl").read()  # a partial download is not a list of bad clips
+    missing = json.load(open(tmp_path / "b" / "missing_clips.json"))["splits"]
+    (split, entry), = missing.items()
+    assert entry["missing"] == 1 and victim.rsplit(".", 1)[0] in entry["clip_ids"][0]

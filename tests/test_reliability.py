@@ -172,8 +172,9 @@ def test_check_config_sees_an_old_plan_and_collects_problems(cfg, dataset, tmp_p
     other = load_config(preset="demo", overrides=SMALL, corpus_dir=cfg.corpus.dir, seed=3,
                         splits={"train": 4, "val": 2, "test": 2})
     msgs = check_config(other, out_dir=dataset).messages()
-    assert msgs == [f"{dataset} was planned with a different config ({dataset}/plan/config.json); choose another "
-                    f"--out, or use the same config to --resume"]
+    assert msgs == [f"{dataset} was planned with a different config ({dataset}/plan/config.json: seed (planned 0, "
+                    f"now 3)); choose another --out, use the same config to --resume, or --grow if only "
+                    f"splits.NAME.count grew"]
     assert "already holds this finished dataset" in check_config(cfg, out_dir=dataset).warnings[0]
     # several independent problems are reported together
     bad = load_config(preset="demo", corpus_dir=str(tmp_path), splits={"train": 2, "val": 0, "test": 0},
@@ -182,7 +183,7 @@ def test_check_config_sees_an_old_plan_and_collects_problems(cfg, dataset, tmp_p
     msgs = check_config(bad).messages()
     assert len(msgs) == 3, msgs
     assert "room.length minimum 1.5 m" in msgs[0] and "sources.height minimum 4.9" in msgs[1]
-    assert "manifest file not found" in msgs[2]
+    assert f"splits.train.manifest: train.csv not found in {tmp_path}" in msgs[2]
     with pytest.raises(GeometryError, match=r"and 2 more problem"):
         check_config(bad).raise_for_errors()
 

@@ -105,13 +105,15 @@ def db(x: float) -> float:
 
 @dataclass(frozen=True)
 class ClipCheck:
-    """What the up-front check found about one clip; ``problem`` is None for a good clip."""
+    """What the up-front check found about one clip; ``problem`` is None for a good clip,
+    ``missing`` says the problem is that the file does not exist."""
 
     clip_id: str
     problem: str | None
     duration: float | None = None
     samplerate: int | None = None
     channels: int | None = None
+    missing: bool = False  # the file does not exist (a partial download), not a bad file
 
 
 def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_channels: int,
@@ -128,7 +130,7 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
     if os.path.exists(path) and not os.path.isfile(path):
         return ClipCheck(clip_id, f"{path} is not a regular file (a pipe, device or socket)")
     if not os.path.isfile(path):
-        return ClipCheck(clip_id, f"audio file not found: {path}")
+        return ClipCheck(clip_id, f"audio file not found: {path}", missing=True)
     if level == "exists":
         return ClipCheck(clip_id, None)
     if os.path.getsize(path) == 0:

@@ -8,6 +8,10 @@ Output::
       queries.csv        fold,split,file,scene_id,query  (one row per scene)
       classes.json       {"0": "target", "1": "interferer"}, folds, format notes
 
+Exporting some splits into an existing export of the same dataset adds them (their
+files and query rows replace the earlier ones; the other splits' stay); an export of
+another dataset, format or WAV subtype in ``OUT`` is refused.
+
 Label CSV rows (no header, as STARSS23): ``frame,class,source,azimuth,elevation,distance``
 — frame index of 100 ms frames, class index, source index (counted per class, as in
 STARSS23), azimuth and elevation in integer degrees (array frame, azimuth counter-
@@ -31,9 +35,12 @@ from .atomic import write_json, write_text
 from .audio import save_wav
 from .choices import WavSubtype, values
 from .errors import DatasetError, TselError
+from .progress import bar
+from .store.dataset import load_dataset_doc
 from .store.reader import list_splits, open_dataset
 
 CLASSES = {0: "target", 1: "interferer"}
+QUERY_COLUMNS = ("fold", "split", "file", "scene_id", "query")
 SUBTYPES = values(WavSubtype)
 
 
@@ -69,11 +76,12 @@ def _round_half_up(x) -> np.ndarray:
     return np.floor(np.asarray(x, dtype=np.float64) + 0.5).astype(np.int64)
 
 
-def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", progress=None) -> dict:
+def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", progress: bool | None = False) -> dict:
     """Write the DCASE layout of ``splits`` (default: all) under ``out``; returns a summary.
 
     subtype: WAV sample format (``PCM_16`` as STARSS23, which the baselines scale by
-    1/32768; ``PCM_24``; ``FLOAT``). PCM needs every sample in [-1, 1).
+    1/32768; ``PCM_24``; ``FLOAT``). PCM needs every sample in [-1, 1). progress: a bar
+    per split (None: when stderr is a terminal).
     """
     if subtype not in SUBTYPES:
         raise TselError(f"unknown WAV subtype {subtype!r}; choose one of {', '.join(SUBTYPES)}")
@@ -84,9 +92,10 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
             raise DatasetError(f"{root}: no split {s!r}; available splits: {', '.join(all_splits)}")
     if os.path.abspath(out) == os.path.abspath(root):
         raise TselError(f"--out {out} is the dataset itself; choose a new directory")
+    fmt = load_dataset_doc(root).format
+    folds, earlier = _earlier_export(out, root, fmt, subtype)
     summary = {"out": out, "splits": {}, "rows": 0}
-    query_rows = []
-    fmt = None
+    query_rows = [r for r in earlier if r[1] not in splits]  # the splits not exported now stay
     for split in splits:
         fold = all_splits.index(split) + 1
         if fold > 9:
@@ -98,6 +107,8 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
             os.makedirs(audio_dir, exist_ok=True)
             os.makedirs(meta_dir, exist_ok=True)
             n_rows = 0
+            written = set()
+            b = bar(n_scenes, f"export {split}", "scene", progress)
             for scene in ds:
                 name = f"fold{fold}_{scene.scene_id}"
                 peak = float(np.max(np.abs(scene.audio))) if scene.audio.size else 0.0
@@ -108,15 +119,20 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
                 rows = dcase_rows(scene)
                 write_text(os.path.join(meta_dir, name + ".csv"), _csv(rows))
                 n_rows += len(rows)
-                query_rows.append((fold, split, name, scene.scene_id, scene.query))
-                if progress:
-                    progress(scene)
+                query_rows.append((str(fold), split, name, scene.scene_id, scene.query))
+                written.add(name)
+                b.update()
+            b.close()
+            _remove_stale(fold, written, audio_dir, ".wav")
+            _remove_stale(fold, written, meta_dir, ".csv")
         summary["splits"][split] = {"fold": fold, "scenes": n_scenes, "rows": n_rows, "audio_dir": audio_dir,
                                     "metadata_dir": meta_dir}
         summary["rows"] += n_rows
-    write_text(os.path.join(out, "queries.csv"), _csv([("fold", "split", "file", "scene_id", "query"), *query_rows]))
+    query_rows.sort(key=lambda r: int(r[0]))  # fold order; scene order within a fold (a stable sort)
+    write_text(os.path.join(out, "queries.csv"), _csv([QUERY_COLUMNS, *query_rows]))
+    folds.update({s: v["fold"] for s, v in summary["splits"].items()})
     info = {"classes": {str(k): v for k, v in CLASSES.items()},
-            "folds": {s: v["fold"] for s, v in summary["splits"].items()},
+            "folds": dict(sorted(folds.items(), key=lambda kv: kv[1])),
             "format": fmt, "source": os.path.abspath(root),
             "csv_columns": ["frame", "class", "source", "azimuth_deg", "elevation_deg", "distance_cm"],
             "frame_hop_s": 0.1, "wav_subtype": subtype}
@@ -128,6 +144,41 @@ def _csv(rows) -> str:
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerows(rows)
     return buf.getvalue()
+
+
+def _earlier_export(out: str, root: str, fmt: str, subtype: str) -> tuple[dict, list]:
+    """The folds and query rows an export already in ``out`` holds, so exporting one
+    split adds to it instead of dropping the other splits' queries; a DatasetError when
+    it is an export of another dataset, format or WAV subtype (merging would mix them)."""
+    info_path = os.path.join(out, "classes.json")
+    if not os.path.exists(info_path):
+        return {}, []
+    try:
+        with open(info_path, encoding="utf-8") as f:
+            info = json.load(f)
+        with open(os.path.join(out, "queries.csv"), newline="", encoding="utf-8") as f:
+            rows = [tuple(r) for r in csv.reader(f)]
+    except (OSError, ValueError) as e:
+        raise DatasetError(f"{out} holds an unreadable export ({e}); export into an empty --out") from None
+    if not isinstance(info, dict) or not rows or tuple(rows[0]) != QUERY_COLUMNS:
+        raise DatasetError(f"{out} holds files that are not a tsel export (classes.json, queries.csv); export into "
+                           f"an empty --out")
+    theirs = {"dataset": info.get("source"), "format": info.get("format"), "WAV subtype": info.get("wav_subtype")}
+    mine = {"dataset": os.path.abspath(root), "format": fmt, "WAV subtype": subtype}
+    differ = [f"{k} {theirs[k]} (now {mine[k]})" for k in mine if theirs[k] != mine[k]]
+    if differ:
+        raise DatasetError(f"{out} holds an export of another {', '.join(differ)}; adding this one would mix them: "
+                           f"export into another --out")
+    return dict(info.get("folds") or {}), rows[1:]
+
+
+def _remove_stale(fold: int, written: set, folder: str, ext: str) -> None:
+    """Remove a split's files an earlier export wrote that this one did not (the dataset
+    has fewer scenes now): the export then holds exactly the dataset's scenes."""
+    for name in os.listdir(folder):
+        stem, e = os.path.splitext(name)
+        if e == ext and stem.startswith(f"fold{fold}_") and stem not in written:
+            os.remove(os.path.join(folder, name))
 
 
 def read_dcase_csv(path: str) -> np.ndarray:

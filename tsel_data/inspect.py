@@ -1,9 +1,12 @@
-"""Look at and listen to one scene: text summary, picture, mixture WAV.
+"""Look at and listen to one scene: text summary, picture, mixture WAV and a headphone
+preview of it (per-source stems are rendered again from the recipe by
+:mod:`tsel_data.stems`, which the command line calls).
 
-The picture has three panels: the room seen from above (walls, the array with an arrow
-along its front, +x, every directional source with its trajectory, the target as a
-star), each source's azimuth over time (thick where the source is active), and the
-spectrogram of channel 0; the title is the query.
+The picture: the room seen from above (walls, the array with an arrow along its front,
++x, every directional source with its trajectory, the target as a star); each source's
+azimuth and elevation per label frame (a thick stroke per active frame, dotted where
+silent); the active frames of each source; the spectrogram of channel 0; the title is
+the query.
 """
 from __future__ import annotations
 
@@ -17,29 +20,34 @@ from .audio import save_wav
 from .errors import DatasetError, TselError
 from .features import stft
 from .geometry import array_to_room, sph_to_cart
+from .stereo import stereo_preview
 from .store.reader import Scene, list_splits, open_dataset
 
 SOURCE_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
 
 
 def find_scene(root: str, ref: str, split: str | None = None) -> Scene:
-    """A scene by id (``test-000012``) or by ``split/index`` (``test/12``, negative allowed)."""
-    splits = list_splits(root)
+    """A scene by id (``test-000012``) or by ``split/index`` (``test/12``; negative counts
+    from the end). A dataset still being made is searched in its finished shards."""
+    splits = list_splits(root, unfinished=True)
     if "/" in ref:
         sp, _, idx = ref.partition("/")
         try:
             i = int(idx)
         except ValueError:
             raise TselError(f"scene {ref!r}: expected SPLIT/INDEX with an integer index, e.g. test/0") from None
-        with open_dataset(root, sp) as ds:
+        with open_dataset(root, sp, unfinished=True) as ds:
             try:
-                return ds[i]
+                return ds[ds.position_of(i) if i >= 0 else i]
             except IndexError:
+                if not ds.doc.finished and 0 <= i < ds.doc.planned.get(sp, 0):
+                    raise DatasetError(f"scene {ref!r} is not rendered yet (its shard is unfinished; {len(ds)} "
+                                       f"scenes of split {sp!r} are)") from None
                 raise DatasetError(f"scene {ref!r}: split {sp!r} has {len(ds)} scenes (index 0..{len(ds) - 1})") from None
     # Scene ids start with their split by convention; look there first, then everywhere.
     order = [split] if split else sorted(splits, key=lambda s: not ref.startswith(s + "-"))
     for sp in order:
-        with open_dataset(root, sp) as ds:
+        with open_dataset(root, sp, unfinished=True) as ds:
             if ref in ds:
                 return ds.by_id(ref)
     where = f"split {split!r}" if split else f"splits {', '.join(splits)}"
@@ -98,7 +106,7 @@ def summary(scene: Scene) -> str:
         lines.append(f"  [{s}] {info.role:<10} {info.clip_id or '?'}  {info.spatial}"
                      f"{' moving' if info.moving else ''}  {pos}  active {100 * act.mean():.0f}% of frames"
                      + (f"  {', '.join(extra)}" if extra else ""))
-        for cap in info.captions[:3]:
+        for cap in info.captions:
             lines.append(f"        caption: {cap}")
     return "\n".join(lines)
 
@@ -109,6 +117,20 @@ def write_wav(scene: Scene, path: str, subtype: str = "FLOAT") -> str:
         raise TselError(f"{scene.scene_id}: read with audio=False; no audio to write")
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     save_wav(path, scene.audio.T, scene.fs, subtype=subtype)
+    return path
+
+
+def stereo_path(path: str) -> str:
+    """Where the headphone preview of the mixture written to ``path`` goes: ``X.stereo.wav``."""
+    return f"{os.path.splitext(path)[0]}.stereo.wav"
+
+
+def write_stereo(scene: Scene, path: str) -> str:
+    """Write the mixture's headphone preview (:mod:`tsel_data.stereo`), float32."""
+    if scene.audio is None:
+        raise TselError(f"{scene.scene_id}: read with audio=False; no audio to write")
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    save_wav(path, stereo_preview(scene.audio, scene.format).T, scene.fs)
     return path
 
 
@@ -134,8 +156,46 @@ def source_tracks(scene: Scene) -> tuple[list[np.ndarray | None], np.ndarray, fl
     return tracks, centre, yaw
 
 
+def frame_runs(active: np.ndarray) -> list[tuple[int, int]]:
+    """(first, count) of each run of consecutive active frames."""
+    a = np.r_[False, np.asarray(active, bool), False]
+    edges = np.flatnonzero(np.diff(a.astype(np.int8)))
+    return [(int(b), int(e - b)) for b, e in zip(edges[::2], edges[1::2])]
+
+
+def frame_segments(values: np.ndarray, active: np.ndarray, hop: float, wrap: bool = True):
+    """x, y to draw a per-frame label over the frames a source is active in: each run of
+    active frames from the start of its first frame to the end of its last, through the
+    labels at the frame centres (a single active frame is a stroke the frame's width, so
+    a source active in one frame still shows), broken (NaN) between runs and, with
+    ``wrap``, where the azimuth wraps between -180° and 180° (no line across the plot)."""
+    v = np.asarray(values, dtype=np.float64)
+    on = np.asarray(active, bool) & np.isfinite(v)
+    xs: list[float] = []
+    ys: list[float] = []
+    for first, n in frame_runs(on):
+        ks = np.arange(first, first + n)
+        cut = np.flatnonzero(np.abs(np.diff(v[ks])) > 180.0) + 1 if wrap else []
+        for piece in np.split(ks, cut):
+            if xs:
+                xs.append(np.nan)
+                ys.append(np.nan)
+            xs += [piece[0] * hop, *((piece + 0.5) * hop), (piece[-1] + 1) * hop]
+            ys += [v[piece[0]], *v[piece], v[piece[-1]]]
+    return np.asarray(xs), np.asarray(ys)
+
+
+def wrap_breaks(t: np.ndarray, az: np.ndarray):
+    """t, az with NaN inserted where the azimuth wraps (|step| > 180°), for a line plot."""
+    az = np.asarray(az, dtype=np.float64)
+    jumps = np.flatnonzero(np.abs(np.diff(az)) > 180.0) + 1
+    return np.insert(np.asarray(t, dtype=np.float64), jumps, np.nan), np.insert(az, jumps, np.nan)
+
+
 def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
-    """Draw the scene (room, azimuth tracks, spectrogram) to a PNG file."""
+    """Draw the scene to a PNG file: the room from above; azimuth and elevation per label
+    frame (a thick stroke per active frame, dotted where silent, no jump where the
+    azimuth wraps); which frames each source is active in; the spectrogram of channel 0."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -144,9 +204,14 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
 
     if scene.audio is None:
         raise TselError(f"{scene.scene_id}: read with audio=False; cannot draw a spectrogram")
-    fig = plt.figure(figsize=(13, 6.2))
-    gs = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.35), hspace=0.35, wspace=0.22)
-    ax_room, ax_az, ax_spec = fig.add_subplot(gs[:, 0]), fig.add_subplot(gs[0, 1]), fig.add_subplot(gs[1, 1])
+    fig = plt.figure(figsize=(13, 8.6))
+    gs = fig.add_gridspec(4, 2, width_ratios=(1.0, 1.35), height_ratios=(1.0, 0.8, 0.22 + 0.1 * scene.n_sources, 1.0),
+                          hspace=0.55, wspace=0.3)
+    ax_room = fig.add_subplot(gs[:, 0])
+    ax_az = fig.add_subplot(gs[0, 1])
+    ax_el = fig.add_subplot(gs[1, 1], sharex=ax_az)
+    ax_act = fig.add_subplot(gs[2, 1], sharex=ax_az)
+    ax_spec = fig.add_subplot(gs[3, 1])
     rec = scene.record
     tracks, centre, yaw = source_tracks(scene)
     # measured-bank scenes may know their room's size but not where the array stood: array frame
@@ -170,6 +235,7 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
                      xytext=(centre[0], centre[1]), arrowprops=dict(arrowstyle="-|>", color="k", lw=1.8))
     ax_room.plot([centre[0]], [centre[1]], "ks", ms=5, label=f"array ({scene.format}), arrow = front")
     t = scene.frame_times()
+    hop = scene.label_hop
     for s, tr in enumerate(tracks):
         col = SOURCE_COLOURS[s % len(SOURCE_COLOURS)]
         name = f"{s}: {rec.sources[s].role}"
@@ -182,25 +248,44 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
         if np.ptp(tr[:, :2], axis=0).max() > 1e-3:
             ax_room.plot(tr[0, 0], tr[0, 1], "x", color=col, ms=7)  # start of a moving source
     ax_room.set_aspect("equal")
-    ax_room.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
+    ax_room.legend(loc="best", fontsize=8, framealpha=0.85)
     ax_room.set_title("room from above" + ("" if dims else " (array frame)"), fontsize=10)
 
-    # --- azimuth over time ---------------------------------------------------------
-    for s in range(scene.n_sources):
-        az = scene.azimuth[s].astype(np.float64)
-        if not np.isfinite(az).any():
-            continue
-        col = SOURCE_COLOURS[s % len(SOURCE_COLOURS)]
-        ax_az.plot(t, az, ":", color=col, lw=1)
-        ax_az.plot(t, np.where(scene.active[s], az, np.nan), "-", color=col, lw=3,
-                   label=f"{s}: {scene.record.sources[s].role}")
+    # --- azimuth and elevation per frame ------------------------------------------------
+    for ax, labels, wrap in ((ax_az, scene.azimuth, True), (ax_el, scene.elevation, False)):
+        for s in range(scene.n_sources):
+            v = labels[s].astype(np.float64)
+            if not np.isfinite(v).any():
+                continue
+            col = SOURCE_COLOURS[s % len(SOURCE_COLOURS)]
+            ax.plot(*(wrap_breaks(t, v) if wrap else (t, v)), ":", color=col, lw=1)
+            ax.plot(*frame_segments(v, scene.active[s], hop, wrap), "-", color=col, lw=3, solid_capstyle="butt",
+                    label=f"{s}: {rec.sources[s].role}")
+        ax.grid(alpha=0.3)
     ax_az.set_ylim(-180, 180)
     ax_az.set_yticks(range(-180, 181, 90))
-    ax_az.set_xlim(0, scene.n_frames * scene.label_hop)
     ax_az.set_ylabel("azimuth (deg)")
-    ax_az.set_title("azimuth per frame (thick = active)", fontsize=10)
-    ax_az.grid(alpha=0.3)
-    ax_az.legend(fontsize=8, loc="best", framealpha=0.8)
+    ax_az.set_title("azimuth and elevation per label frame (thick = active, dotted = silent)", fontsize=10)
+    if ax_az.has_data():
+        ax_az.legend(fontsize=8, loc="best", framealpha=0.8)
+    el = scene.elevation[np.isfinite(scene.elevation)]
+    lo, hi = (float(el.min()), float(el.max())) if el.size else (-10.0, 10.0)
+    pad = max(5.0, 0.15 * (hi - lo))
+    ax_el.set_ylim(max(-90.0, lo - pad), min(90.0, hi + pad))
+    ax_el.set_ylabel("elevation (deg)")
+
+    # --- activity: every active frame, one row per source ----------------------------------
+    for s in range(scene.n_sources):
+        col = SOURCE_COLOURS[s % len(SOURCE_COLOURS)]
+        runs = [(k * hop, n * hop) for k, n in frame_runs(scene.active[s])]
+        ax_act.broken_barh(runs, (s - 0.35, 0.7), facecolors=col)
+    ax_act.set_yticks(range(scene.n_sources))
+    ax_act.set_yticklabels([f"{s}: {rec.sources[s].role} {100 * scene.active[s].mean():.0f}%"
+                            for s in range(scene.n_sources)], fontsize=8)
+    ax_act.set_ylim(scene.n_sources - 0.5, -0.5)
+    ax_act.set_xlim(0, scene.n_frames * hop)
+    ax_act.set_title("active frames", fontsize=10)
+    ax_act.grid(axis="x", alpha=0.3)
 
     # --- spectrogram of channel 0 --------------------------------------------------
     spec = np.abs(stft(scene.audio[:1], 1024, 256))[0].T
@@ -225,10 +310,12 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
 
 def inspect_scene(root: str, ref: str, split: str | None = None, png: str | None = None,
                   wav: str | None = None) -> tuple[Scene, str]:
-    """Find a scene, optionally write its picture and WAV; returns (scene, summary text)."""
+    """Find a scene, optionally write its picture, its mixture (``wav``) and the
+    mixture's headphone preview (:func:`stereo_path`); returns (scene, summary text)."""
     scene = find_scene(root, ref, split)
     if png:
         plot_scene(scene, png)
     if wav:
         write_wav(scene, wav)
+        write_stereo(scene, stereo_path(wav))
     return scene, summary(scene)

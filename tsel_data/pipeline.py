@@ -24,8 +24,8 @@ import h5py
 from tqdm import tqdm
 
 from .atomic import write_error, write_json, write_lines
-from .catalog import write_bad_clips
-from .config import Config, parse_config
+from .catalog import write_bad_clips, write_missing_clips
+from .config import Config, Difference, config_differences, parse_config
 from .errors import AudioError, BankError, DatasetError
 from .executors import Runner
 from .geometry import CHANNEL_NAMES
@@ -37,7 +37,8 @@ from .store.dataset import ShardEntry, dataset_doc, shard_attrs
 from .store.integrity import read_seal, shard_fingerprint, shard_state
 from .store.layout import Layout
 from .store.lock import DatasetLock
-from .store.plans import ShardTask, has_plan, plan_doc, read_plan_doc, read_split_plan, shard_tasks, stored_config
+from .store.plans import (ShardTask, has_plan, plan_doc, read_plan_doc, read_plan_lines, read_split_plan, shard_tasks,
+                          stored_config)
 from .store.writer import ShardWriter
 
 
@@ -49,10 +50,50 @@ def planned_with(layout: Layout, cfg: Config) -> str:
     ``"different"`` (another config, or an unreadable one)."""
     if not has_plan(layout):
         return "none"
-    return "same" if stored_config(layout) == cfg.to_dict() else "different"
+    try:
+        return "different" if plan_differences(layout, cfg) else "same"
+    except TselError:
+        return "different"
 
 
-def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, force: bool = False) -> dict:
+def plan_differences(layout: Layout, cfg: Config) -> list[Difference]:
+    """The keys where ``cfg`` differs from the config ``layout``'s plan was made with
+    (DatasetError when the stored config is unreadable)."""
+    stored = stored_config(layout)
+    if stored is None:
+        raise DatasetError(f"{layout.config_file} is damaged or holds no config; plan again into a new --out")
+    return config_differences(stored, cfg, where=layout.config_file)
+
+
+def growth(diffs: list[Difference]) -> dict[str, tuple[int, int]] | None:
+    """{split: (planned, asked)} when every difference is a larger ``splits.NAME.count``
+    of a split the plan has (what ``--grow`` adds scenes for), else None."""
+    out = {}
+    for d in diffs:
+        parts = d.key.split(".")
+        if len(parts) != 3 or parts[0] != "splits" or parts[2] != "count" or not isinstance(d.before, int) \
+                or not isinstance(d.after, int) or d.after < d.before:
+            return None
+        out[parts[1]] = (d.before, d.after)
+    return out or None
+
+
+def _refuse(out_dir: str, layout: Layout, diffs: list[Difference], grow: bool) -> DatasetError:
+    """The one-line refusal to continue a plan of another config, naming the keys."""
+    shown = "; ".join(str(d) for d in diffs[:4]) + (f"; and {len(diffs) - 4} more" if len(diffs) > 4 else "")
+    counts_only = all(d.key.startswith("splits.") and d.key.endswith(".count") for d in diffs)
+    if counts_only and growth(diffs):
+        fix = "to add the scenes to this dataset pass --grow (the planned scenes stay as they are)"
+    elif counts_only:
+        fix = "a dataset does not shrink: ask for at least the planned counts, or choose another --out"
+    else:
+        fix = (f"--resume needs the config the plan was made with ({layout.config_file}); use it, or choose "
+               f"another --out" + (" (--grow changes only splits.NAME.count)" if grow else ""))
+    return DatasetError(f"{out_dir} was planned with a different config: {shown}; {fix}")
+
+
+def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, grow: bool = False,
+                 force: bool = False, progress: bool | None = None, report=None) -> dict:
     """Check the corpus and write the plan into ``out_dir``.
 
     Parameters
@@ -64,6 +105,15 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
         Processes for clip checks and planning.
     resume : bool
         Accept an existing plan of the same config (and plan nothing).
+    grow : bool
+        Accept an existing plan whose config asks fewer scenes of some splits, and add
+        the scenes: the planned ones keep their recipes (and rendered shards their
+        bytes), so the grown dataset is the one a fresh run with the new counts makes.
+    progress : bool or None
+        Bars while clips are checked (None: on a terminal).
+    report : callable, optional
+        Called with one-line notes for the user: per split, how many of the listed
+        clips are present; clips reused by many scenes.
     force : bool
         Write into a folder that holds files but no tsel-data dataset (files of the same
         names are replaced); without it such a folder is refused.
@@ -76,8 +126,9 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
     Raises
     ------
     DatasetError
-        ``out_dir`` holds a plan (without ``resume``), a plan of another config, files
-        that are not a dataset (without ``force``), or another process is writing it.
+        ``out_dir`` holds a plan (without ``resume``/``grow``), a plan of another config
+        (naming the keys that differ), files that are not a dataset (without ``force``),
+        or another process is writing it.
     TselError
         Any problem of the corpus or the bank (the first; ``tsel check`` lists all).
     """
@@ -88,7 +139,7 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
     except OSError as e:
         raise write_error(out_dir, e, out_dir) from None
     with DatasetLock(layout, exclusive=True, what="plan it"):
-        return _plan_locked(cfg, layout, workers, resume)
+        return _plan_locked(cfg, layout, workers, resume, grow, progress, report)
 
 
 # Disk per scene beyond the float32 audio: the HDF5 labels (3 float32 + 1 bool per source
@@ -130,28 +181,85 @@ def check_ownership(layout: Layout, force: bool = False) -> None:
                        f"empty --out, or pass --force to write into it anyway (files of the same names are replaced)")
 
 
-def _plan_locked(cfg: Config, layout: Layout, workers: int, resume: bool) -> dict:
+def _plan_locked(cfg: Config, layout: Layout, workers: int, resume: bool, grow: bool, progress, report) -> dict:
     out_dir = layout.root
     state = planned_with(layout, cfg)
     if state != "none":
-        if not resume:
+        if not resume and not grow:
             raise DatasetError(f"{out_dir} already holds a dataset plan; pass --resume to continue it "
                                f"or choose another --out")
-        if state == "different":
-            raise DatasetError(f"{out_dir} was planned with a different config; --resume needs the same "
-                               f"config, seed and splits (compare with {layout.config_file})")
-        return {s: sp.count for s, sp in cfg.splits.items()}
-    catalog, views = prepare_views(cfg, layout, workers)
+        diffs = plan_differences(layout, cfg)
+        if not diffs:
+            return {s: sp.count for s, sp in cfg.splits.items()}
+        grown = growth(diffs) if grow else None
+        if grown is None:
+            raise _refuse(out_dir, layout, diffs, grow)
+        return _grow(cfg, layout, grown, workers, progress, report)
+    catalog, views = _catalog(cfg, layout, workers, progress, report)
     check_space(cfg, layout)  # after the corpus: what is wrong with the inputs is said first
+    plans = {split: plan_split_json(cfg, split, views[split], workers) if sp.count else []
+             for split, sp in cfg.splits.items()}
+    _write_plan(cfg, layout, catalog, plans)
+    return {split: len(lines) for split, lines in plans.items()}
+
+
+def _catalog(cfg: Config, layout: Layout, workers: int, progress, report):
+    """The checked catalog and planning views, with the notes the user should see first."""
+    catalog, views = prepare_views(cfg, layout, workers, progress)
+    if report:
+        for line in catalog.presence_lines() + [f"warning: {w}" for w in catalog.warnings]:
+            report(line)
+    return catalog, views
+
+
+def _write_plan(cfg: Config, layout: Layout, catalog, plans: dict[str, list[str]]) -> None:
+    """bad_clips.jsonl, missing_clips.json (when files are missing), the plan files, and
+    plan/config.json last: its presence means the plan is complete."""
     write_bad_clips(layout.bad_clips_file, catalog.bad)
-    counts = {}
-    for split, sp in cfg.splits.items():
-        lines = plan_split_json(cfg, split, views[split], workers) if sp.count else []
+    missing = {s: len(c) for s, c in catalog.missing.items() if c}
+    if missing:
+        write_missing_clips(layout.missing_clips_file, catalog)
+    for split, lines in plans.items():
         write_lines(layout.plan_file(split), lines)
-        counts[split] = len(lines)
-    doc = plan_doc(cfg.to_dict(), {s: len(c) for s, c in catalog.clips.items()}, len(catalog.bad))
-    write_json(layout.config_file, doc)  # last: its presence means the plan is complete
-    return counts
+    doc = plan_doc(cfg.to_dict(), {s: len(c) for s, c in catalog.clips.items()}, len(catalog.bad), missing)
+    write_json(layout.config_file, doc)
+
+
+def _grow(cfg: Config, layout: Layout, grown: dict[str, tuple[int, int]], workers: int, progress, report) -> dict:
+    """Add scenes to a planned (perhaps finished) dataset: plan every split again with
+    the same catalog, require the planned scenes to come out the same (else the corpus or
+    bank changed and the grown dataset would mix two), mark the dataset unfinished
+    (dataset.json removed), remove each grown split's last shard if it was partial (it
+    is rendered again, fuller), then write the longer plan."""
+    catalog, views = _catalog(cfg, layout, workers, progress, report)
+    plans = {}
+    for split, sp in cfg.splits.items():
+        before = read_plan_lines(layout, split)
+        if split not in grown:
+            plans[split] = before
+            continue
+        planned = grown[split][0]
+        lines = plan_split_json(cfg, split, views[split], workers) if sp.count else []
+        changed = next((i for i in range(planned) if i >= len(before) or lines[i] != before[i]), None)
+        if changed is not None:
+            raise DatasetError(f"{layout.root}: scene {split}-{changed:06d} would now be planned differently (the "
+                               f"corpus, its clip checks or the RIR bank changed since the plan); growing would mix "
+                               f"two corpora: generate the larger dataset into a new --out")
+        plans[split] = lines
+    stale = [layout.dataset_file]
+    size = cfg.output.shard_size
+    for split, (planned, _) in grown.items():
+        if planned % size:  # a partial last shard: rendered again with the new scenes
+            stale += reversed(layout.shard_files(split, planned // size))  # HDF5 first: then it is incomplete
+    for path in stale:
+        try:
+            os.remove(path)
+        except FileNotFoundError:
+            pass
+        except OSError as e:
+            raise write_error(os.path.relpath(path, layout.root), e, layout.root) from None
+    _write_plan(cfg, layout, catalog, plans)
+    return {split: len(lines) for split, lines in plans.items()}
 
 
 def load_plan(out_dir: str) -> tuple[Config, dict[str, list[SceneRecipe]]]:
@@ -164,7 +272,14 @@ def load_plan(out_dir: str) -> tuple[Config, dict[str, list[SceneRecipe]]]:
     """
     layout = Layout(out_dir)
     cfg = parse_config(read_plan_doc(layout)["config"], where=layout.config_file)
-    return cfg, {s: read_split_plan(layout, s) for s in cfg.splits}
+    plans = {s: read_split_plan(layout, s) for s in cfg.splits}
+    for s, recipes in plans.items():
+        if len(recipes) != cfg.splits[s].count:
+            # plan files are written before plan/config.json: a grow interrupted in between
+            raise DatasetError(f"{layout.plan_file(s)} holds {len(recipes)} scenes but {layout.config_file} asks "
+                               f"{cfg.splits[s].count}; the plan was interrupted: run the same `tsel generate "
+                               f"... --grow` again")
+    return cfg, plans
 
 
 def plan_shard_tasks(cfg: Config, plans: dict[str, list]) -> list[ShardTask]:
@@ -342,7 +457,8 @@ def finalize(out_dir: str) -> dict:
 
 
 def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, progress: bool = True,
-             executor: str = "local", scheduler: str | None = None, force: bool = False) -> dict:
+             executor: str = "local", scheduler: str | None = None, grow: bool = False, force: bool = False,
+             report=None) -> dict:
     """Plan, render and finalize a dataset (the three stages above, in one call).
 
     Parameters are those of :func:`plan_dataset` and :func:`render_shards`.
@@ -351,23 +467,23 @@ def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, 
     -------
     dict
         ``out``, ``splits`` ({split: scenes}), ``rendered_now`` ({split: scenes rendered by
-        this call}), ``bad_clips`` (count), ``plan_seconds``, ``render_seconds``, ``bytes``
-        (on disk).
+        this call}), ``bad_clips`` (count), ``missing_clips`` (clips whose audio file is
+        absent), ``plan_seconds``, ``render_seconds``, ``bytes`` (on disk).
     """
     t0 = time.perf_counter()
-    plan_dataset(cfg, out_dir, workers=workers, resume=resume, force=force)
+    # clip-check bars only on a terminal: a log file would get thousands of bar updates
+    plan_dataset(cfg, out_dir, workers=workers, resume=resume, grow=grow, force=force,
+                 progress=None if progress else False, report=report)
     t1 = time.perf_counter()
     rendered = render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
     t2 = time.perf_counter()
     doc = finalize(out_dir)
-    bad = 0
-    bad_path = Layout(out_dir).bad_clips_file
-    if os.path.exists(bad_path):
-        with open(bad_path, encoding="utf-8") as f:
-            bad = sum(1 for _ in f)
+    layout = Layout(out_dir)
+    plan = read_plan_doc(layout)
     return {"out": out_dir, "splits": {s: v["scenes"] for s, v in doc["splits"].items()},
-            "rendered_now": rendered, "bad_clips": bad, "plan_seconds": t1 - t0, "render_seconds": t2 - t1,
-            "bytes": _dir_size(out_dir)}
+            "rendered_now": rendered, "bad_clips": plan.get("bad_clips", 0),
+            "missing_clips": sum((plan.get("missing_clips") or {}).values()), "plan_seconds": t1 - t0,
+            "render_seconds": t2 - t1, "bytes": _dir_size(out_dir)}
 
 
 def _dir_size(d: str) -> int:

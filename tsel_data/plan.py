@@ -45,18 +45,20 @@ class CatalogView:
         self.bank_path = bank_path
 
 
-def prepare_views(cfg: Config, home: Layout, workers: int = 1) -> tuple[CatalogScan, dict[str, CatalogView]]:
+def prepare_views(cfg: Config, home: Layout, workers: int = 1,
+                  progress: bool | None = None) -> tuple[CatalogScan, dict[str, CatalogView]]:
     """Everything planning needs besides the config: the checked catalog and, per split
     that makes scenes, its :class:`CatalogView` (clips, and the resolved bank).
 
     ``home`` is where built-in inputs are made once (``builtin:demo`` corpus,
-    ``builtin:demo-bank``): the dataset folder for ``tsel generate``. Raises the first
-    problem of the corpus or the bank.
+    ``builtin:demo-bank``): the dataset folder for ``tsel generate``. ``progress``: bars
+    while clips are checked (None: on a terminal). Raises the first problem of the
+    corpus or the bank.
     """
     problem = rooms_without_bank(cfg)
     if problem:
         raise problem
-    catalog = build_catalog(cfg, resolve_corpus_dir(cfg, home.demo_corpus), workers=workers)
+    catalog = build_catalog(cfg, resolve_corpus_dir(cfg, home.demo_corpus), workers=workers, progress=progress)
     bank_path = resolve_bank(bank_request(cfg), home.demo_bank)
     return catalog, {split: CatalogView(clips, bank_path) for split, clips in catalog.clips.items()}
 
@@ -221,8 +223,17 @@ def _place(cfg: Config, rng, spatial: list[str], split: str, index: int):
     raise GeometryError(
         f"scene {split}/{index}: could not place its sources ({shown}), {cfg.scene.min_separation}° apart "
         f"(scene.min_separation), in {ROOM_TRIES} rooms drawn from room.length/width/height; lower "
-        f"scene.min_separation or the settings named, lower the wall margins, or enlarge the rooms"
+        f"scene.min_separation{_separation_hint(spatial)} or the settings named, lower the wall margins, or "
+        f"enlarge the rooms"
     )
+
+
+def _separation_hint(spatial: list[str]) -> str:
+    """What scene.min_separation can be for these sources: k directional sources fit at
+    most 360°/k apart, and placement draws azimuths at random, so it needs a margin."""
+    k = sum(sp == Spatial.DIRECTIONAL for sp in spatial)
+    return f" (at most {360 / k:g}° is possible for {k} directional sources, random placement needs less)" if k > 1 \
+        else ""
 
 
 def _moves(cfg: Config, rng) -> bool:
@@ -370,7 +381,7 @@ def _place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, ba
                 break
         else:
             raise GeometryError(f"scene {split}/{index}: could not place sources {cfg.scene.min_separation}° apart "
-                                f"in bank room {room_name}; lower scene.min_separation")
+                                f"in bank room {room_name}; lower scene.min_separation{_separation_hint(spatial)}")
     return None, array, out, BankRef(bank_path, room_name)
 
 
@@ -386,7 +397,8 @@ def _plan_chunk(bounds: tuple[int, int]) -> list[str]:
     return [plan_scene(st["cfg"], st["split"], i, st["cat"]).to_json() for i in range(*bounds)]
 
 
-def plan_split_json(cfg: Config, split: str, cat: CatalogView, workers: int = 1, chunk: int = 4000) -> list[str]:
+def plan_split_json(cfg: Config, split: str, cat: CatalogView, workers: int = 1, chunk: int = 4000,
+                    start: int = 0) -> list[str]:
     """JSON lines of a split's recipes, planned on ``workers`` processes.
 
     Scenes are independent, so the result is the same for any number of workers.
@@ -400,14 +412,16 @@ def plan_split_json(cfg: Config, split: str, cat: CatalogView, workers: int = 1,
         Processes; 1 plans in this process.
     chunk : int
         Scenes per task.
+    start : int
+        The first scene to plan (a grown dataset plans only its new scenes).
 
     Returns
     -------
     list of str
-        ``splits[split].count`` lines, scene 0 first (``SceneRecipe.to_json``).
+        Scenes ``start`` .. ``splits[split].count - 1`` (``SceneRecipe.to_json``).
     """
     n = cfg.splits[split].count
-    bounds = [(a, min(a + chunk, n)) for a in range(0, n, chunk)]
+    bounds = [(a, min(a + chunk, n)) for a in range(start, n, chunk)]
     if workers <= 1 or len(bounds) <= 1:
         _init_planner(cfg, split, cat)
         return [line for b in bounds for line in _plan_chunk(b)]

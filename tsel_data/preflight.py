@@ -21,7 +21,7 @@ from .banks.scenes import bank_problems, resolve_bank
 from .catalog import BUILTIN_DEMO, resolve_corpus_dir, scan_catalog
 from .config import Config, config_problems, geometry_problems, rooms_without_bank
 from .errors import DatasetError, TselError
-from .pipeline import check_ownership, estimate_bytes, planned_with
+from .pipeline import check_ownership, estimate_bytes, plan_differences, planned_with
 from .plan import CatalogView, bank_request, plan_split_json
 from .report import CheckReport
 from .store.layout import Layout
@@ -90,8 +90,13 @@ def _check_out_dir(cfg: Config, out_dir: str, rep: CheckReport) -> None:
         return
     state = planned_with(layout, cfg)
     if state == "different":
-        rep.error(DatasetError(f"{out_dir} was planned with a different config ({layout.config_file}); choose "
-                               f"another --out, or use the same config to --resume"))
+        try:
+            keys = "; ".join(str(d) for d in plan_differences(layout, cfg)[:4])
+        except TselError:
+            keys = "its config is unreadable"
+        rep.error(DatasetError(f"{out_dir} was planned with a different config ({layout.config_file}: {keys}); "
+                               f"choose another --out, use the same config to --resume, or --grow if only "
+                               f"splits.NAME.count grew"))
     elif state == "same" and os.path.isfile(layout.dataset_file):
         rep.warnings.append(f"{out_dir} already holds this finished dataset; `tsel check {out_dir}` verifies it")
     elif state == "same":
@@ -120,15 +125,23 @@ def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: Chec
         rep.error(e)
         return {}
     rep.facts["corpus_dir"] = corpus_dir if cfg.corpus.dir != BUILTIN_DEMO else BUILTIN_DEMO
-    scan = scan_catalog(cfg, corpus_dir, workers)
+    scan = scan_catalog(cfg, corpus_dir, workers, progress=None)  # bars only on a terminal
     for e in scan.problems:
         rep.error(e)
     for b in scan.bad:
         rep.bad_clips.append(b.to_json())
         if cfg.on_bad_clip == "skip":
             rep.warnings.append(f"{b.origin}: clip {b.clip_id}: {b.problem} (skipped: on_bad_clip = \"skip\")")
+    for split, clips in scan.missing.items():
+        if clips and cfg.on_bad_clip == "skip":
+            # a partial download is normal: one line per split, not one per absent file
+            rep.warnings.append(f"split {split}: {len(clips):,} of {scan.counts[split]['clips']:,} audio files are "
+                                f"missing from {scan.audio_dirs[split]} (first: {os.path.basename(clips[0].audio)}, "
+                                f"{clips[0].origin}); those clips are skipped and listed in OUT/missing_clips.json")
+    rep.warnings += scan.warnings
     for split, c in scan.counts.items():
-        rep.facts["splits"][split].update(clips=c["clips"], bad=c["bad"], policy=cfg.on_bad_clip)
+        rep.facts["splits"][split].update(clips=c["clips"], missing=c["missing"], bad=c["bad"],
+                                          policy=cfg.on_bad_clip)
     return scan.clips
 
 

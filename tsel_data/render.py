@@ -14,6 +14,8 @@ the scene: room, array pose, clips, placements, levels.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .acoustics import simulate_rirs
@@ -113,29 +115,35 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
     return images, rt60
 
 
-def render_scene(recipe: SceneRecipe) -> RenderedScene:
-    """Render one scene: its mixture, per-frame labels and record.
+@dataclass(frozen=True)
+class MixParts:
+    """What a scene's mixture is made of (:func:`mix_parts`).
 
-    Depends on nothing but the recipe and the files it names (clips, the RIR bank), so
-    any worker, at any time, renders the same bytes.
-
-    Parameters
-    ----------
-    recipe : SceneRecipe
-
-    Returns
-    -------
-    RenderedScene
-        ``audio`` float32 [C, T] (T = duration·fs), ``azimuth``/``elevation`` float32
-        [S, F] degrees and ``distance`` [S, F] metres in the array frame (NaN for additive
-        sources), ``active`` bool [S, F], ``mic_positions`` float32 [C, 3] metres, and the
-        :class:`~tsel_data.store.records.SceneRecord`.
-
-    Raises
-    ------
-    AudioError
-        A source is silent in the part of its clip the scene uses.
+    active: bool [S, F]. images: float32 [S, C, T], each source's image at the array,
+    unscaled. gains: [S], each image's gain before ``norm``, the gain applied to the
+    whole mix against clipping. levels: [S] active-frame RMS of the unscaled images.
+    peak: the mix's peak before ``norm``. mix: float32 [C, T], the scene's audio.
+    rt60_measured: s, or None.
     """
+
+    active: np.ndarray
+    images: np.ndarray
+    gains: np.ndarray
+    norm: float
+    levels: np.ndarray
+    peak: float
+    mix: np.ndarray
+    rt60_measured: float | None
+
+    def stems(self) -> np.ndarray:
+        """float32 [S, C, T]: each source alone as it sounds in the mix (they add up to
+        ``mix`` within float32 rounding)."""
+        return self.images * (self.gains * self.norm).astype(np.float32)[:, None, None]
+
+
+def mix_parts(recipe: SceneRecipe) -> MixParts:
+    """Load the clips, render each source's image and set the levels (see the module
+    docstring): every step of :func:`render_scene` but the labels and the record."""
     fs, hop, nf = recipe.fs, recipe.label_hop, recipe.n_frames
     fmt = recipe.array.format
     dry = np.stack([load_clip_cached(s.audio, fs, recipe.duration, s.offset) for s in recipe.sources])
@@ -161,6 +169,36 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
     peak = float(np.max(np.abs(mix))) if mix.size else 0.0
     norm = PEAK_LIMIT / peak if peak > PEAK_LIMIT else 1.0
     mix *= np.float32(norm)
+    return MixParts(active, images, gains, norm, levels, peak, mix, rt60_measured)
+
+
+def render_scene(recipe: SceneRecipe) -> RenderedScene:
+    """Render one scene: its mixture, per-frame labels and record.
+
+    Depends on nothing but the recipe and the files it names (clips, the RIR bank), so
+    any worker, at any time, renders the same bytes.
+
+    Parameters
+    ----------
+    recipe : SceneRecipe
+
+    Returns
+    -------
+    RenderedScene
+        ``audio`` float32 [C, T] (T = duration·fs), ``azimuth``/``elevation`` float32
+        [S, F] degrees and ``distance`` [S, F] metres in the array frame (NaN for additive
+        sources), ``active`` bool [S, F], ``mic_positions`` float32 [C, 3] metres, and the
+        :class:`~tsel_data.store.records.SceneRecord`.
+
+    Raises
+    ------
+    AudioError
+        A source is silent in the part of its clip the scene uses.
+    """
+    fmt = recipe.array.format
+    parts = mix_parts(recipe)
+    active, gains, norm, levels, peak, mix = parts.active, parts.gains, parts.norm, parts.levels, parts.peak, parts.mix
+    rt60_measured = parts.rt60_measured
 
     labels = [source_labels(recipe, k) for k in range(len(recipe.sources))]
     az = np.stack([l[0] for l in labels])

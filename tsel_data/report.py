@@ -58,7 +58,9 @@ class CheckReport:
         for split, s in f.get("splits", {}).items():
             parts = []
             if "clips" in s:
-                parts.append(f"{s['clips']} clips")
+                n, missing = s["clips"], s.get("missing", 0)
+                share = f" ({n - missing:,} present, {100.0 * (n - missing) / n:.1f} %)" if missing and n else ""
+                parts.append(f"{n:,} clips{share}")
             if s.get("bad"):
                 parts.append(f"{s['bad']} bad ({s.get('policy', 'skip')})")
             if "planned" in s:

@@ -4,7 +4,9 @@ Per split: scene count, scenarios, moving fraction, clip use and reuse, a 10° h
 of target azimuths (one value per scene: the circular mean over its active frames),
 angular separation between the target and the nearest other directional source,
 source distances, room sizes, RT60 requested and measured, levels (target level, TIR,
-peak), the target's active share of frames, and query length in words.
+peak), the target's active share of frames and mean elevation, what moves and how fast
+(the median great-circle speed of each moving source along its labels), and query
+length in words. A dataset still being made gives the statistics of its finished shards.
 """
 from __future__ import annotations
 
@@ -17,6 +19,8 @@ from .geometry import azimuth_difference, circular_mean
 from .store.reader import list_splits, open_dataset
 
 AZ_BIN = 10
+# what moves in a scene, by (target moves) + 2 * (an interferer moves)
+MOTION_KINDS = ("static", "target", "interferer", "both")
 
 
 def _summ(values) -> dict:
@@ -37,11 +41,11 @@ def _mean_az(az, active) -> float | None:
 
 def split_stats(root: str, split: str) -> dict:
     """Statistics of one split (a JSON-friendly dict; ``raw`` holds per-scene values for plots)."""
-    with open_dataset(root, split) as ds:
+    with open_dataset(root, split, unfinished=True) as ds:
         scenes = list(ds.iter_labels())  # labels only: small
-    raw = {k: [] for k in ("target_az", "separation", "target_dist", "interferer_dist", "room_x", "room_y",
-                           "room_z", "volume", "rt60", "rt60_measured", "target_level", "tir", "peak",
-                           "target_active", "query_words")}
+    raw = {k: [] for k in ("target_az", "target_el", "separation", "target_dist", "interferer_dist", "room_x",
+                           "room_y", "room_z", "volume", "rt60", "rt60_measured", "target_level", "tir", "peak",
+                           "target_active", "query_words", "speed", "moves")}
     clip_uses, target_clips = Counter(), Counter()
     scenarios, motions = Counter(), Counter()
     moving = 0
@@ -60,6 +64,11 @@ def split_stats(root: str, split: str) -> dict:
         act = sc.active.astype(bool)
         t_az = _mean_az(sc.azimuth[0], act[0])
         raw["target_az"].append(t_az)
+        el0 = sc.elevation[0][np.isfinite(sc.elevation[0])]
+        raw["target_el"].append(float(np.mean(el0)) if el0.size else None)
+        moves = [k for k, src in enumerate(rec.sources) if src.moving]
+        raw["moves"].append(MOTION_KINDS[(0 in moves) + 2 * any(k > 0 for k in moves)])
+        raw["speed"] += [angular_speed(sc.azimuth[k], sc.elevation[k], sc.label_hop) for k in moves]
         others = [_mean_az(sc.azimuth[s], act[s]) for s in range(1, sc.n_sources)]
         others = [a for a in others if a is not None]
         if t_az is not None and others:
@@ -108,13 +117,28 @@ def split_stats(root: str, split: str) -> dict:
                       "peak_dbfs": _summ([20 * np.log10(p) for p in raw["peak"] if p])},
         "target_active_fraction": _summ(raw["target_active"]),
         "query_words": _summ(raw["query_words"]),
+        "moving_sources": {"scenes": dict(Counter(raw["moves"])), "speed_deg_s": _summ(raw["speed"])},
+        "target_elevation_deg": _summ(raw["target_el"]),
         "raw": raw,
     }
 
 
+def angular_speed(az, el, hop: float) -> float | None:
+    """Median angular speed (deg/s) of a source along its labels: the great-circle angle
+    between consecutive frames' directions over the hop (the speed ``scene.speed`` sets)."""
+    az, el = np.radians(np.asarray(az, dtype=np.float64)), np.radians(np.asarray(el, dtype=np.float64))
+    u = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
+    ok = np.all(np.isfinite(u), axis=1)
+    steps = np.einsum("ij,ij->i", u[:-1], u[1:])[ok[:-1] & ok[1:]]
+    if not steps.size:
+        return None
+    return float(np.degrees(np.median(np.arccos(np.clip(steps, -1.0, 1.0)))) / hop)
+
+
 def dataset_stats(root: str, splits=None) -> dict:
-    """{split: split_stats} for the given splits (default: all, in dataset.json order)."""
-    return {s: split_stats(root, s) for s in (list(splits) if splits else list_splits(root))}
+    """{split: split_stats} for the given splits (default: all, in dataset.json order); a
+    dataset still being made gives the statistics of its finished shards."""
+    return {s: split_stats(root, s) for s in (list(splits) if splits else list_splits(root, unfinished=True))}
 
 
 def _line(name: str, s: dict, unit: str = "", fmt: str = ".2f") -> str:
@@ -159,39 +183,69 @@ def format_text(stats: dict) -> str:
         out.append(_line("TIR (dB)", s["levels_db"]["tir"], fmt=".1f"))
         out.append(_line("peak (dBFS)", s["levels_db"]["peak_dbfs"], fmt=".1f"))
         out.append(_line("target active fraction", s["target_active_fraction"]))
+        out.append(_line("target elevation (deg)", s["target_elevation_deg"], fmt=".1f"))
+        out.append(_line("moving source speed (deg/s)", s["moving_sources"]["speed_deg_s"], fmt=".1f"))
         out.append(_line("query length (words)", s["query_words"], fmt=".0f"))
     return "\n".join(out)
 
 
 def plot_stats(stats: dict, path: str, dpi: int = 100) -> str:
-    """Histograms of the main quantities, one colour per split, to a PNG file."""
+    """Histograms of the main quantities, one colour per split, to a PNG file. Each bar
+    height is the share of the split's values in that bin (%), so splits of any size
+    compare; the panel titles say what is counted."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    panels = [("target_az", "target azimuth (deg)", np.arange(-180, 181, AZ_BIN)),
-              ("separation", "target-interferer separation (deg)", np.arange(0, 181, 10)),
-              ("target_dist", "target distance (m)", 20), ("volume", "room volume (m³)", 20),
-              ("rt60", "RT60 requested (s)", 20), ("rt60_measured", "RT60 measured (s)", 20),
-              ("tir", "TIR (dB)", 20), ("query_words", "query length (words)", np.arange(0.5, 41.5, 1))]
-    fig, axes = plt.subplots(2, 4, figsize=(16, 6.5))
+    panels = [("target_az", "target azimuth (deg)", np.arange(-180, 181, AZ_BIN), "scenes"),
+              ("target_el", "target elevation (deg)", np.arange(-90, 91, 10), "scenes"),
+              ("separation", "target-interferer separation (deg)", np.arange(0, 181, 10), "scenes"),
+              ("target_dist", "target distance (m)", 20, "scenes"),
+              ("volume", "room volume (m³)", 20, "scenes"), ("rt60", "RT60 requested (s)", 20, "scenes"),
+              ("rt60_measured", "RT60 measured (s)", 20, "scenes"), ("tir", "TIR (dB)", 20, "interferers"),
+              ("speed", "speed of moving sources (deg/s)", 20, "moving sources"),
+              ("target_active", "target active fraction", np.linspace(0, 1, 21), "scenes"),
+              ("query_words", "query length (words)", 1, "scenes")]  # 1: one bin per word
+    fig, axes = plt.subplots(3, 4, figsize=(17, 10))
+    axes = axes.ravel()
+
     def values(s, key):
         return np.asarray([x for x in s["raw"][key] if x is not None and np.isfinite(x)], dtype=float)
 
-    for ax, (key, title, bins) in zip(axes.ravel(), panels):
+    for ax, (key, title, bins, unit) in zip(axes, panels):
         if np.isscalar(bins):  # the same edges for every split, so they compare
             every = np.concatenate([values(s, key) for s in stats.values()])
-            bins = np.histogram_bin_edges(every, bins) if every.size else bins
+            if bins == 1:
+                bins = np.arange(0.5, (every.max() if every.size else 1) + 1.5)
+            else:
+                bins = np.histogram_bin_edges(every, bins) if every.size else bins
         for name, s in stats.items():
             v = values(s, key)
             if v.size:
-                ax.hist(v, bins=bins, histtype="step", lw=1.6, density=True, label=f"{name} ({v.size})")
+                ax.hist(v, bins=bins, histtype="step", lw=1.6, weights=np.full(v.size, 100.0 / v.size),
+                        label=f"{name} ({v.size})")
         ax.set_title(title, fontsize=10)
+        ax.set_ylabel(f"% of {unit}", fontsize=8)
         ax.tick_params(labelsize=8)
         if ax.has_data():
             ax.legend(fontsize=7)
-    fig.suptitle("dataset statistics per split (normalised histograms)")
+        else:
+            ax.text(0.5, 0.5, "no values", ha="center", va="center", transform=ax.transAxes, color="0.5")
+    # what moves: share of each split's scenes per kind, bars side by side
+    ax = axes[len(panels)]
+    width = 0.8 / max(len(stats), 1)
+    for i, (name, s) in enumerate(stats.items()):
+        n = max(len(s["raw"]["moves"]), 1)
+        shares = [100.0 * s["raw"]["moves"].count(k) / n for k in MOTION_KINDS]
+        ax.bar(np.arange(len(MOTION_KINDS)) + (i - (len(stats) - 1) / 2) * width, shares, width, label=name)
+    ax.set_xticks(range(len(MOTION_KINDS)))
+    ax.set_xticklabels(MOTION_KINDS, fontsize=8)
+    ax.set_ylabel("% of scenes", fontsize=8)
+    ax.set_title("what moves in a scene", fontsize=10)
+    ax.tick_params(labelsize=8)
+    ax.legend(fontsize=7)
+    fig.suptitle("dataset statistics per split (share of each split's values per bin)")
     fig.tight_layout()
     try:
         with atomic_output(path) as tmp:

@@ -39,13 +39,23 @@ def import_group():
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
 def import_tau(src, out, rooms, fmt, force):
     """Import the TAU-SRIR DB as distributed (reads each trajectory once, never a whole file)."""
-    from ..banks.native import write_bank
-
     with open_bank(src, kind="tau", format=fmt) as b:
-        path = write_bank(out, b, rooms=_rooms(rooms), provenance={"importer": "tsel bank import tau"},
-                          progress=lambda room, t: click.echo(f"  {room} {t.id}: {len(t)} RIRs", err=True),
-                          overwrite=force)
+        path = _write_with_bar(out, b, _rooms(rooms), {"importer": "tsel bank import tau"}, force)
     click.echo(f"wrote {path}")
+
+
+def _write_with_bar(out, b, rooms, provenance, force=False):
+    """write_bank with a bar counting RIRs (a TAU room is thousands, read trajectory by
+    trajectory); on a terminal only."""
+    from ..banks.native import write_bank  # as every command: its library module when it runs
+    from ..progress import bar
+
+    names = [b.resolve_room(r) for r in rooms] if rooms else list(b.rooms)
+    total = sum(len(t) for r in names for t in b.trajectories(r))
+    with bar(total, "import", "RIR", None) as shown:
+        return write_bank(out, b, rooms=rooms, provenance=provenance, overwrite=force,
+                          progress=lambda room, t: (shown.set_postfix_str(f"{room} {t.id}", refresh=False),
+                                                    shown.update(len(t))))
 
 
 @import_group.command("sofa")
@@ -57,12 +67,10 @@ def import_tau(src, out, rooms, fmt, force):
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
 def import_sofa(files, out, fmt, rooms, grouping, force):
     """Import SOFA SingleRoomSRIR files (one room each), e.g. SpatialScaper's <room>_foa.sofa."""
-    from ..banks.native import write_bank
     from ..banks.sofa import SofaBank
 
     with SofaBank(list(files) if len(files) > 1 else files[0], format=fmt, grouping=grouping) as b:
-        path = write_bank(out, b, rooms=_rooms(rooms), provenance={"importer": "tsel bank import sofa"},
-                          overwrite=force)
+        path = _write_with_bar(out, b, _rooms(rooms), {"importer": "tsel bank import sofa"}, force)
     click.echo(f"wrote {path}")
 
 
@@ -125,5 +133,9 @@ def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side,
                             f"{', '.join(given)} or --demo")
         kw.update({k: v for k, v in DEMO.items() if k != "n_rooms"})
         n_rooms = DEMO["n_rooms"]
-    path = build_bank(out, format=fmt, n_rooms=n_rooms, seed=seed, overwrite=force, **kw)
+    from ..progress import bar  # tqdm: only for the commands that show a bar
+
+    with bar(n_rooms, "simulate", "room", None) as shown:  # on a terminal only
+        path = build_bank(out, format=fmt, n_rooms=n_rooms, seed=seed, overwrite=force,
+                          progress=lambda _room: shown.update(), **kw)
     click.echo(f"wrote {path}")

@@ -12,38 +12,48 @@ from .options import config_options, executor_options, load, worker_count
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
 @click.option("--resume", is_flag=True, help="Continue an interrupted run in --out.")
+@click.option("--grow", is_flag=True, help="Add scenes to the dataset in --out: give larger --split counts; the "
+              "scenes it has stay byte-identical.")
 @click.option("--force", is_flag=True, help="Write into a folder that holds other files (not a tsel-data dataset).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 @executor_options
-def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, resume, force,
+def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, resume, grow, force,
                  quiet, executor, scheduler):
     """Plan, render and finalize a dataset in one go."""
     from ..pipeline import generate
 
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
     s = generate(cfg, out_dir, workers=worker_count(workers), resume=resume, progress=not quiet, executor=executor,
-                 scheduler=scheduler, force=force)
+                 scheduler=scheduler, grow=grow, force=force, report=_report)
     total = sum(s["splits"].values())
     rate = sum(s["rendered_now"].values()) / s["render_seconds"] if s["render_seconds"] > 0 else 0.0
     click.echo(f"dataset {cfg.name} in {out_dir}: " + ", ".join(f"{k} {v}" for k, v in s["splits"].items())
                + f" scenes ({total} total)")
     click.echo(f"  plan {s['plan_seconds']:.1f} s, render {s['render_seconds']:.1f} s ({rate:.2f} scenes/s), "
                f"{s['bytes'] / 1e6:.1f} MB on disk, {s['bad_clips']} bad clips skipped"
-               + (" (see bad_clips.jsonl)" if s["bad_clips"] else ""))
+               + (" (see bad_clips.jsonl)" if s["bad_clips"] else "")
+               + (f", {s['missing_clips']} clips missing (see missing_clips.json)" if s["missing_clips"] else ""))
+
+
+def _report(line: str) -> None:
+    """Notes from the corpus check (clips present per split, reuse), before any rendering:
+    output, not errors, so stdout (stderr carries the progress bars and errors)."""
+    click.echo(line)
 
 
 @click.command("plan")
 @config_options
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--workers", type=int, default=0, help="Processes for checking clips.")
+@click.option("--grow", is_flag=True, help="Add scenes to the plan in --out (larger --split counts).")
 @click.option("--force", is_flag=True, help="Write into a folder that holds other files (not a tsel-data dataset).")
-def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, force):
+def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, grow, force):
     """Check the corpus and write scene recipes only (plan/{split}.jsonl)."""
     from ..pipeline import plan_dataset
     from ..store.plans import shard_tasks
 
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
-    counts = plan_dataset(cfg, out_dir, workers=worker_count(workers), force=force)
+    counts = plan_dataset(cfg, out_dir, workers=worker_count(workers), grow=grow, force=force, report=_report)
     n_shards = len(shard_tasks(counts, cfg.output.shard_size))
     click.echo("planned " + ", ".join(f"{k} {v}" for k, v in counts.items()) + f" scenes in {n_shards} shards "
                f"(0-{n_shards - 1}) in {out_dir}/plan")

@@ -15,22 +15,12 @@ def export_cmd():
 @click.option("--split", "splits", multiple=True, help="Only this split (repeatable; default: all).")
 @click.option("--subtype", type=click.Choice(values(WavSubtype)), default="PCM_16", show_default=True,
               help="WAV sample format (the DCASE baselines expect 16-bit).")
-@click.option("--quiet", is_flag=True, help="No progress bar.")
+@click.option("--quiet", is_flag=True, help="No progress bar (it shows only on a terminal anyway).")
 def dcase_cmd(dataset_dir, out_dir, splits, subtype, quiet):
     """DCASE 2024 Task 3 layout: WAV per scene, frame/class/source/azimuth/elevation/distance CSVs, queries."""
     from ..export import export_dcase
 
-    bar = None
-    if not quiet:
-        from tqdm import tqdm
-
-        bar = tqdm(unit="scene", desc="export")
-    try:
-        summary = export_dcase(dataset_dir, out_dir, splits or None, subtype=subtype,
-                               progress=(lambda _s: bar.update()) if bar is not None else None)
-    finally:
-        if bar is not None:
-            bar.close()
+    summary = export_dcase(dataset_dir, out_dir, splits or None, subtype=subtype, progress=False if quiet else None)
     for split, v in summary["splits"].items():
         click.echo(f"{split}: fold {v['fold']}, {v['scenes']} scenes, {v['rows']} label rows -> {v['audio_dir']}")
     click.echo(f"queries: {out_dir}/queries.csv; classes: 0 = target, 1 = interferer ({out_dir}/classes.json)")

@@ -1,19 +1,41 @@
 """``tsel inspect DIR SCENE``: describe one scene; optionally draw it and write its audio."""
 import click
 
+from .options import note_unfinished
+
 
 @click.command("inspect")
 @click.argument("dataset_dir", type=click.Path(file_okay=False))
 @click.argument("scene")
 @click.option("--split", help="Look the scene id up in this split only.")
-@click.option("--png", type=click.Path(dir_okay=False), help="Draw room, azimuth tracks and spectrogram here.")
-@click.option("--wav", type=click.Path(dir_okay=False), help="Write the mixture here (float32 WAV, all channels).")
-def inspect_cmd(dataset_dir, scene, split, png, wav):
+@click.option("--png", type=click.Path(dir_okay=False), help="Draw room, azimuth and elevation, activity and "
+              "spectrogram here.")
+@click.option("--wav", type=click.Path(dir_okay=False), help="Write the mixture here (float32 WAV, all channels), "
+              "with a headphone preview (X.stereo.wav) and each source alone (X.target.stereo.wav, "
+              "X.interferer1.stereo.wav, ...).")
+@click.option("--no-stems", is_flag=True, help="With --wav: not the per-source stems (they are rendered again from "
+              "the recipe, which needs the clips).")
+def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems):
     """Show SCENE of DATASET_DIR: a scene id (test-000003) or SPLIT/INDEX (test/3)."""
-    from ..inspect import inspect_scene
+    from ..errors import TselError
+    from ..inspect import inspect_scene, stereo_path  # h5py and matplotlib: only when inspect runs
 
-    _, text = inspect_scene(dataset_dir, scene, split=split, png=png, wav=wav)
+    note_unfinished(dataset_dir)
+    found, text = inspect_scene(dataset_dir, scene, split=split, png=png, wav=wav)
     click.echo(text)
-    for what, path in (("picture", png), ("audio", wav)):
-        if path:
-            click.echo(f"{what}: {path}")
+    if png:
+        click.echo(f"picture: {png}")
+    if wav:
+        click.echo(f"audio: {wav} (all channels), {stereo_path(wav)} (headphones)")
+        if not no_stems:
+            from ..stems import write_stems  # rendering: scipy and the simulators load only here
+
+            try:
+                paths, same = write_stems(dataset_dir, found, wav)
+            except TselError as e:
+                click.echo(f"note: no stems: {e}", err=True)
+            else:
+                click.echo("stems: " + ", ".join(paths))
+                if not same:
+                    click.echo("note: the stems do not add up to the stored mixture: the clips or the RIR bank "
+                               "changed since the dataset was made", err=True)

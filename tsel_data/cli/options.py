@@ -54,3 +54,13 @@ def executor_options(f):
                      show_default=True, help="Where shards render: a process pool, a Dask cluster, or a local "
                      "Dask cluster of --workers processes.")(f)
     return f
+
+
+def note_unfinished(dataset_dir: str) -> None:
+    """Say on stderr when a read-only tool looks at a dataset still being made (it then
+    reads the shards finished so far)."""
+    from ..store.reader import dataset_doc  # h5py: loaded by the commands that read datasets only
+
+    note = dataset_doc(dataset_dir, unfinished=True).unfinished_note(dataset_dir)
+    if note:
+        click.echo(f"note: {note}", err=True)

@@ -3,6 +3,8 @@ import json
 
 import click
 
+from .options import note_unfinished
+
 
 @click.command("stats")
 @click.argument("dataset_dir", type=click.Path(file_okay=False))
@@ -13,6 +15,7 @@ def stats_cmd(dataset_dir, splits, png, as_json):
     """Scenes, clip reuse, target azimuths, separation, distances, rooms, RT60, levels, queries."""
     from ..stats import dataset_stats, format_text, plot_stats
 
+    note_unfinished(dataset_dir)
     st = dataset_stats(dataset_dir, splits or None)
     if as_json:
         click.echo(json.dumps({k: {kk: vv for kk, vv in v.items() if kk != "raw"} for k, v in st.items()}, indent=1))

@@ -3,6 +3,8 @@ import json
 
 import click
 
+from .options import note_unfinished
+
 
 @click.command("verify")
 @click.argument("dataset_dir", type=click.Path(file_okay=False))
@@ -12,12 +14,15 @@ import click
 @click.option("--fail-under", type=float, default=0.0, show_default=True,
               help="Exit with 1 if a split's agreement rate (0-1) is below this.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON (every disagreeing scene, every source).")
+@click.option("--quiet", is_flag=True, help="No progress bar (it shows only on a terminal anyway).")
 @click.pass_context
-def verify_cmd(ctx, dataset_dir, splits, tolerance, max_scenes, fail_under, as_json):
+def verify_cmd(ctx, dataset_dir, splits, tolerance, max_scenes, fail_under, as_json, quiet):
     """Agreement of labels with SRP-PHAT (mic arrays) or the intensity vector (FOA), per split."""
     from ..verify import verify_dataset
 
-    report = verify_dataset(dataset_dir, splits or None, tolerance=tolerance, max_scenes=max_scenes)
+    note_unfinished(dataset_dir)
+    report = verify_dataset(dataset_dir, splits or None, tolerance=tolerance, max_scenes=max_scenes,
+                            progress=False if quiet else None)
     click.echo(json.dumps(report.to_dict(), indent=1) if as_json else report.format_text())
     low = [s for s, v in report.splits.items() if v["tested"] and v["rate"] < fail_under]
     if low:

@@ -15,7 +15,7 @@ from typing import Any
 
 from ..distributions import Dist
 from ..errors import ConfigError
-from .rules import check_raw_config, validate_config
+from .rules import Where, at, check_raw_config, validate_config
 from .schema import SECTIONS, TOP_FIELDS, TOP_KEYS, Config, SplitConfig
 
 BUILTIN_PREFIX = "builtin:"  # corpus.dir / room.bank values the run builds itself
@@ -64,26 +64,31 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
     ConfigError
         One line naming the file or preset, the key and the fix.
     """
-    raw: dict = {}
+    # (label, raw table) in the order they apply; an error about a key names the last
+    # source that set it (rules.Where), so a bad --set value is not blamed on the preset
+    layers: list[tuple[str, dict]] = []
     if preset:
-        raw = _merge(raw, _parse_toml(preset_text(preset), f"preset {preset}"))
+        layers.append((f"preset {preset}", _parse_toml(preset_text(preset), f"preset {preset}")))
     if path:
-        raw = _merge(raw, _read_user_file(path))
-    for ov in overrides:
-        raw = _merge(raw, _parse_override(ov))
+        layers.append((path, _read_user_file(path)))
+    layers += [(f"--set {_printable(ov.strip())}", _parse_override(ov)) for ov in overrides]
     if corpus_dir:
-        raw.setdefault("corpus", {})["dir"] = corpus_dir
+        layers.append(("--corpus-dir", {"corpus": {"dir": corpus_dir}}))
     if bank:
-        raw.setdefault("room", {})["bank"] = os.path.abspath(os.path.expanduser(bank))
+        layers.append(("--bank", {"room": {"bank": os.path.abspath(os.path.expanduser(bank))}}))
     if seed is not None:
-        raw["seed"] = seed
+        layers.append(("--seed", {"seed": seed}))
     for name, count in (splits or {}).items():
-        table = raw.setdefault("splits", {})
-        if not isinstance(table, dict) or not isinstance(table.setdefault(name, {}), dict):
-            raise ConfigError(f"--split {name}={count}: splits.{name} is set to a value, not a table (from --set or "
-                              f"the config); set splits.{name}.count instead")
-        table[name]["count"] = count
-    return parse_config(raw, where=path or (f"preset {preset}" if preset else "config"), validate=validate)
+        layers.append((f"--split {name}={count}", {"splits": {name: {"count": count}}}))
+    raw: dict = {}
+    origins: dict[str, str] = {}
+    for label, table in layers:
+        raw = _merge(raw, table)
+        origins.update((key, label) for key in _leaf_keys(table))
+    base = path or (f"preset {preset}" if preset else "config")
+    # keys the base file or preset sets are labelled by it (the default label)
+    origins = {k: v for k, v in origins.items() if v != base}
+    return parse_config(raw, where=Where(base, origins), validate=validate)
 
 
 def parse_config(raw: dict, where: str = "config", validate: bool = True) -> Config:
@@ -100,10 +105,12 @@ def parse_config(raw: dict, where: str = "config", validate: bool = True) -> Con
     splits = {}
     for name, sraw in (raw.get("splits") or {}).items():
         if not isinstance(sraw, dict):
-            raise ConfigError(f"{where}: splits.{name} must be a table with manifest and count")
+            raise ConfigError(f"{at(where, f'splits.{name}')}: splits.{name} must be a table with manifest and count")
         splits[name] = _parse_section(sraw, SplitConfig, where, f"splits.{name}")
     kw["splits"] = splits
     cfg = Config(**kw)
+    # where each value came from, for the messages of checks run later (`tsel check`)
+    object.__setattr__(cfg, "_where", where)
     if validate:
         validate_config(cfg, where)
     return cfg
@@ -160,6 +167,23 @@ def _parse_override(ov: str) -> dict:
     return out
 
 
+def _printable(text: str) -> str:
+    """``text`` with control characters escaped, so a label keeps an error on one line."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+
+
+def _leaf_keys(table, prefix: str = ""):
+    """Dotted keys of a raw table's values (``room.rt60``), tables descended into."""
+    if not isinstance(table, dict):
+        return
+    for k, v in table.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict) and v:
+            yield from _leaf_keys(v, key + ".")
+        else:
+            yield key
+
+
 def _merge(a: dict, b: dict) -> dict:
     out = dict(a)
     for k, v in b.items():
@@ -169,12 +193,12 @@ def _merge(a: dict, b: dict) -> dict:
 
 def _check_keys(raw: dict, known, where: str, prefix: str) -> None:
     if not isinstance(raw, dict):
-        raise ConfigError(f"{where}: {prefix.rstrip('.') or 'config'} must be a table")
+        raise ConfigError(f"{at(where, prefix.rstrip('.'))}: {prefix.rstrip('.') or 'config'} must be a table")
     for k in raw:
         if k not in known:
             close = difflib.get_close_matches(k, list(known), n=1, cutoff=0.5)
             hint = f"; did you mean {prefix}{close[0]}?" if close else f"; known keys: {', '.join(known)}"
-            raise ConfigError(f"{where}: unknown config key {prefix}{k!r}{hint}")
+            raise ConfigError(f"{at(where, prefix + str(k))}: unknown config key {prefix}{k!r}{hint}")
 
 
 def _parse_section(raw: dict, cls, where: str, sec: str):
@@ -188,18 +212,22 @@ def _parse_section(raw: dict, cls, where: str, sec: str):
 def _parse_value(v, f, defaults, where: str, key: str):
     """One raw value, typed like the field's default."""
     if f.metadata.get("dist"):
-        return Dist.parse(v, f"{where}: {key}")
+        return Dist.parse(v, f"{at(where, key)}: {key}")
     default = getattr(defaults, f.name)
+    if f.metadata.get("many") and isinstance(v, list):
+        if not v or not all(isinstance(x, str) and x for x in v):
+            raise ConfigError(f"{at(where, key)}: {key} must be a string or a list of non-empty strings, got {v!r}")
+        return tuple(v)
     if isinstance(default, tuple):
         return tuple(v) if isinstance(v, list) else (v,)
     if isinstance(default, (bool, str)):
         if not isinstance(v, type(default)):
-            raise ConfigError(f"{where}: {key} must be a {type(default).__name__}, got {v!r}")
+            raise ConfigError(f"{at(where, key)}: {key} must be a {type(default).__name__}, got {v!r}")
         return v
     if isinstance(default, (int, float)):
         whole = not isinstance(default, int) or float(v).is_integer() if isinstance(v, (int, float)) else False
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not whole:
             kind = "a whole number" if isinstance(default, int) else "a number"
-            raise ConfigError(f"{where}: {key} must be {kind}, got {v!r}")
+            raise ConfigError(f"{at(where, key)}: {key} must be {kind}, got {v!r}")
         return type(default)(v)
     return v

@@ -28,6 +28,48 @@ MAX_NUMBER = 1e9  # larger config numbers are typos (seeds excepted)
 SPLIT_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 
 
+class Where(str):
+    """The label errors start with (``preset demo``, ``my.toml``), knowing which keys a
+    later source set: ``--set scene.min_separation=200``, ``--corpus-dir``, ``--split
+    train=5``. So an error about a value names the place the user wrote it.
+
+    ``origins`` maps dotted keys (``room.rt60``, ``splits.train``) to their label; a
+    key's origin is its own entry or its nearest ancestor's.
+    """
+
+    def __new__(cls, base: str, origins: dict | None = None):
+        w = super().__new__(cls, base)
+        w.origins = dict(origins or {})
+        return w
+
+    def of(self, key: str) -> str:
+        parts = key.split(".")
+        for n in range(len(parts), 0, -1):
+            label = self.origins.get(".".join(parts[:n]))
+            if label is not None:
+                return label
+        # a table named whole (``splits.train``) was set by whoever set a key inside it
+        inside = [label for k, label in self.origins.items() if k.startswith(key + ".")]
+        return inside[-1] if inside else str(self)
+
+
+def origin(cfg, where: str | None) -> str:
+    """``where``, or the label :func:`~tsel_data.config.load.parse_config` gave ``cfg``
+    (a :class:`Where` knowing which keys ``--set`` and the CLI options set)."""
+    return where if where is not None else getattr(cfg, "_where", "config")
+
+
+def at(where: str, *keys: str) -> str:
+    """The label of an error about ``keys``: the first of them a later source (``--set``,
+    a CLI option) set, else ``where`` itself."""
+    if isinstance(where, Where):
+        for k in keys:
+            label = where.of(k)
+            if label != str(where):
+                return label
+    return str(where)
+
+
 # --- raw structure -----------------------------------------------------------------------
 
 
@@ -42,7 +84,7 @@ def check_raw_config(raw, where: str = "config") -> None:
         raise ConfigError(f"{where}: a config must be a table of sections, got {type(raw).__name__}")
     splits = raw.get("splits")
     if splits is not None and not isinstance(splits, dict):
-        raise ConfigError(f"{where}: splits must be a table of [splits.NAME] with manifest and count, "
+        raise ConfigError(f"{at(where, 'splits')}: splits must be a table of [splits.NAME] with manifest and count, "
                           f"got {splits!r}")
     _finite(raw, where, "")
 
@@ -67,18 +109,19 @@ def _finite(x, where: str, key: str) -> None:
         except OverflowError:
             ok = False
         if not ok:
-            raise ConfigError(f"{where}: {key or 'config'} = {x!r} is not a finite number; write a number "
+            raise ConfigError(f"{at(where, key)}: {key or 'config'} = {x!r} is not a finite number; write a number "
                               f"within float range")
         if key != "seed" and abs(x) > MAX_NUMBER:
             # no physical quantity, count or rate here comes near; ratios of such numbers overflow
-            raise ConfigError(f"{where}: {key} = {x!r} is out of range (|x| > {MAX_NUMBER:g}); check the value")
+            raise ConfigError(f"{at(where, key)}: {key} = {x!r} is out of range (|x| > {MAX_NUMBER:g}); check the value")
 
 
 # --- single fields, from the schema's declarations -----------------------------------------------
 
 
-def field_problems(cfg: Config, where: str = "config") -> list[ConfigError]:
+def field_problems(cfg: Config, where: str | None = None) -> list[ConfigError]:
     """Each field against its declared choices and bounds, in schema order."""
+    where = origin(cfg, where)
     out: list[ConfigError] = []
     for f in fields(Config):
         if f.name in TOP_FIELDS:
@@ -103,9 +146,9 @@ def _judge(value, f, key: str, where: str) -> list[ConfigError]:
     if isinstance(value, Dist):
         return _judge_dist(value, m, key, where)
     if choices and value not in choices:
-        return [ConfigError(f"{where}: {key} = {value!r} is not one of {', '.join(choices)}")]
+        return [ConfigError(f"{at(where, key)}: {key} = {value!r} is not one of {', '.join(choices)}")]
     if _bounded(m) and isinstance(value, (int, float)) and not _within(value, m):
-        return [ConfigError(f"{where}: {key} must be {_condition(m)}, got {value!r}")]
+        return [ConfigError(f"{at(where, key)}: {key} must be {_condition(m)}, got {value!r}")]
     return []
 
 
@@ -114,7 +157,7 @@ def _judge_dist(d: Dist, m: dict, key: str, where: str) -> list[ConfigError]:
     if choices:
         if d.kind not in ("const", "choose") or not all(isinstance(o, str) and o in choices for o in d.options):
             names = ", ".join(json.dumps(c) for c in choices)
-            return [ConfigError(f"{where}: {key} must be {names} or [\"choose\", [...]] of them, got "
+            return [ConfigError(f"{at(where, key)}: {key} must be {names} or [\"choose\", [...]] of them, got "
                                 f"{json.dumps(d.to_json())}")]
         return []
     if m.get("integer") and (d.kind not in ("const", "choose") or not all(
@@ -125,9 +168,9 @@ def _judge_dist(d: Dist, m: dict, key: str, where: str) -> list[ConfigError]:
         return []
     b = d.bounds
     if b is None:
-        return [ConfigError(f"{where}: {key} must be numbers ({_condition(m)}), got {json.dumps(d.to_json())}")]
+        return [ConfigError(f"{at(where, key)}: {key} must be numbers ({_condition(m)}), got {json.dumps(d.to_json())}")]
     if not (_within(b[0], m) and _within(b[1], m)):
-        return [ConfigError(f"{where}: {key} must be {_condition(m)}, got {json.dumps(d.to_json())}")]
+        return [ConfigError(f"{at(where, key)}: {key} must be {_condition(m)}, got {json.dumps(d.to_json())}")]
     return []
 
 
@@ -153,8 +196,9 @@ def _condition(m: dict) -> str:
 # --- across fields ------------------------------------------------------------------------------
 
 
-def cross_field_problems(cfg: Config, where: str = "config") -> list[ConfigError]:
+def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigError]:
     """Rules that need more than one field."""
+    where = origin(cfg, where)
     out: list[ConfigError] = []
     a = cfg.audio
     if a.label_hop > 0 and a.fs > 0 and a.label_hop * a.fs < 1:
@@ -162,17 +206,20 @@ def cross_field_problems(cfg: Config, where: str = "config") -> list[ConfigError
                                f"{a.fs} Hz; a label frame must hold samples"))
     if a.duration > 0 and a.label_hop > 0:
         if a.label_hop > a.duration:
-            out.append(ConfigError(f"{where}: audio.label_hop {a.label_hop} s is longer than audio.duration "
+            out.append(ConfigError(f"{at(where, 'audio.label_hop', 'audio.duration')}: audio.label_hop {a.label_hop} s is longer than audio.duration "
                                    f"{a.duration} s"))
         elif abs(a.duration / a.label_hop - round(a.duration / a.label_hop)) > 1e-6:
-            out.append(ConfigError(f"{where}: audio.duration {a.duration} is not a whole number of label_hop "
+            out.append(ConfigError(f"{at(where, 'audio.duration', 'audio.label_hop')}: audio.duration {a.duration} is not a whole number of label_hop "
                                    f"{a.label_hop}"))
     nb = cfg.scene.interferers.bounds
     if nb is not None and cfg.scene.min_separation * (nb[1] + 1) > 360:
-        out.append(ConfigError(f"{where}: scene.min_separation {cfg.scene.min_separation}° is impossible with "
-                               f"{int(nb[1]) + 1} directional sources"))
+        # k sources pairwise min_separation apart on a circle need k·min_separation <= 360°
+        k = int(nb[1]) + 1
+        out.append(ConfigError(f"{at(where, 'scene.min_separation', 'scene.interferers')}: scene.min_separation "
+                               f"{cfg.scene.min_separation:g}° is impossible with {k} directional sources: the "
+                               f"largest possible is {360 / k:g}° (360° / {k}); lower scene.min_separation"))
     if not cfg.room.bank and cfg.scene.format == "foa" and cfg.room.rir_method == "pyroomacoustics":
-        out.append(ConfigError(f"{where}: room.rir_method = \"pyroomacoustics\" renders omni capsules only; "
+        out.append(ConfigError(f"{at(where, 'room.rir_method', 'scene.format')}: room.rir_method = \"pyroomacoustics\" renders omni capsules only; "
                                f"use \"hybrid\" or \"ism\" for scene.format = \"foa\""))
     if not cfg.room.bank and cfg.room.rir_method == "pyroomacoustics":
         dims = [getattr(cfg.room, k).bounds for k in ("length", "width", "height")]
@@ -200,7 +247,7 @@ def rooms_without_bank(cfg: Config) -> ConfigError | None:
 # --- geometry -------------------------------------------------------------------------------------
 
 
-def geometry_problems(cfg: Config, where: str = "config") -> list[GeometryError]:
+def geometry_problems(cfg: Config, where: str | None = None) -> list[GeometryError]:
     """Layouts no scene drawn from the config's ranges could realise (simulated rooms
     only). First the *largest* room the ranges allow: it must hold the wall margins, the
     heights and the minimum source distance; if it does, the *smallest* room: the array
@@ -209,6 +256,7 @@ def geometry_problems(cfg: Config, where: str = "config") -> list[GeometryError]
     reachable in it (diagonal of the floor area left by the margins, with the largest
     height difference). Returns GeometryErrors naming the keys to change.
     """
+    where = origin(cfg, where)
     r, arr, src = cfg.room, cfg.array, cfg.sources
     if r.bank:
         return []
@@ -227,15 +275,15 @@ def _largest_room_problems(cfg: Config, bounds: dict, where: str) -> list[Geomet
     floor = min(lmax, wmax)
     if floor < 2 * arr.wall_margin or floor < 2 * src.wall_margin:
         out.append(GeometryError(
-            f"{where}: the largest room ({floor} m) is smaller than twice the wall margin (array "
+            f"{at(where, 'array.wall_margin', 'sources.wall_margin', 'room.length', 'room.width')}: the largest room ({floor} m) is smaller than twice the wall margin (array "
             f"{arr.wall_margin} m, sources {src.wall_margin} m); lower the margins or enlarge the room"))
     if arr.height.bounds[0] >= hmax or src.height.bounds[0] >= hmax - src.wall_margin:
-        out.append(GeometryError(f"{where}: array or source heights do not fit under the tallest ceiling "
+        out.append(GeometryError(f"{at(where, 'array.height', 'sources.height', 'room.height')}: array or source heights do not fit under the tallest ceiling "
                                  f"({hmax} m); lower array.height or sources.height, or raise room.height"))
     dmin = src.distance.bounds[0]
     reach = max(lmax, wmax) - arr.wall_margin - src.wall_margin
     if dmin > reach:
-        out.append(GeometryError(f"{where}: sources.distance minimum {dmin} m cannot fit in the largest room "
+        out.append(GeometryError(f"{at(where, 'sources.distance', 'room.length', 'room.width')}: sources.distance minimum {dmin} m cannot fit in the largest room "
                                  f"(at most {reach:.2f} m from the array); lower it or enlarge the room"))
     return out
 
@@ -251,22 +299,22 @@ def _smallest_room_problems(cfg: Config, bounds: dict, where: str) -> list[Geome
     if floor < need:
         key = "room.length" if lmin <= wmin else "room.width"
         out.append(GeometryError(
-            f"{where}: {key} minimum {floor} m is smaller than the array plus its margins ({need:.2f} m = 2 x "
+            f"{at(where, key, 'array.wall_margin', 'array.side')}: {key} minimum {floor} m is smaller than the array plus its margins ({need:.2f} m = 2 x "
             f"(array.wall_margin {arr.wall_margin} + array radius {radius:.3f})); raise the minimum to at least "
             f"{need:.2f} m or lower array.wall_margin"))
     if floor <= 2 * src.wall_margin:
         out.append(GeometryError(
-            f"{where}: the smallest room ({floor} m) leaves no floor between the sources' wall margins "
+            f"{at(where, 'sources.wall_margin', 'room.length', 'room.width')}: the smallest room ({floor} m) leaves no floor between the sources' wall margins "
             f"(2 x sources.wall_margin = {2 * src.wall_margin} m); raise the room minimum or lower "
             f"sources.wall_margin"))
     if arr.height.bounds[0] >= hmin:
         out.append(GeometryError(
-            f"{where}: array.height minimum {arr.height.bounds[0]} m does not fit under the lowest ceiling "
+            f"{at(where, 'array.height', 'room.height')}: array.height minimum {arr.height.bounds[0]} m does not fit under the lowest ceiling "
             f"(room.height minimum {hmin} m); lower array.height or raise room.height"))
     top = hmin - src.wall_margin
     if src.height.bounds[0] > top:
         out.append(GeometryError(
-            f"{where}: sources.height minimum {src.height.bounds[0]} m is above the highest source position in the "
+            f"{at(where, 'sources.height', 'sources.wall_margin', 'room.height')}: sources.height minimum {src.height.bounds[0]} m is above the highest source position in the "
             f"lowest room ({hmin} m - sources.wall_margin {src.wall_margin} m = {top:.2f} m); lower sources.height "
             f"or raise room.height"))
     if not out:
@@ -277,7 +325,7 @@ def _smallest_room_problems(cfg: Config, bounds: dict, where: str) -> list[Geome
         dmin = src.distance.bounds[0]
         if dmin > reach:
             out.append(GeometryError(
-                f"{where}: sources.distance minimum {dmin} m cannot fit in the smallest room ({lmin} x {wmin} x "
+                f"{at(where, 'sources.distance', 'room.length', 'room.width', 'room.height')}: sources.distance minimum {dmin} m cannot fit in the smallest room ({lmin} x {wmin} x "
                 f"{hmin} m; at most {reach:.2f} m from the array given the wall margins); lower sources.distance or "
                 f"raise the room minimum"))
     return out
@@ -286,9 +334,10 @@ def _smallest_room_problems(cfg: Config, bounds: dict, where: str) -> list[Geome
 # --- all of them ------------------------------------------------------------------------------------
 
 
-def config_problems(cfg: Config, where: str = "config", geometry: bool = True) -> list[ConfigError]:
+def config_problems(cfg: Config, where: str | None = None, geometry: bool = True) -> list[ConfigError]:
     """Every problem of a parsed config: fields, then across fields, then (if the fields
     are sound) geometry."""
+    where = origin(cfg, where)
     out = field_problems(cfg, where)
     out += cross_field_problems(cfg, where)
     if geometry and not out:
@@ -296,8 +345,9 @@ def config_problems(cfg: Config, where: str = "config", geometry: bool = True) -
     return out
 
 
-def validate_config(cfg: Config, where: str = "config", geometry: bool = True) -> None:
+def validate_config(cfg: Config, where: str | None = None, geometry: bool = True) -> None:
     """Raise the first problem of :func:`config_problems`."""
+    where = origin(cfg, where)
     problems = config_problems(cfg, where, geometry)
     if problems:
         raise problems[0]

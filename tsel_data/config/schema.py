@@ -17,12 +17,15 @@ from ..jsonable import jsonable
 
 
 def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, le=None, lt=None, why: str = "",
-           path: bool = False):
+           path: bool = False, many: bool = False, new: bool = False):
     """A plain field: ``unit`` (shown in docs and messages), ``choices`` (an enumeration),
     ``ge``/``gt``/``le``/``lt`` (bounds), ``why`` (a reason shown when a bound fails),
-    ``path`` (resolved against a config file's folder)."""
+    ``path`` (resolved against a config file's folder), ``many`` (a string field that also
+    takes a list of strings, kept as a tuple), ``new`` (added after format version 1:
+    stored in ``plan/config.json`` and ``dataset.json`` only when it differs from the
+    default, so datasets made without it keep their bytes)."""
     meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": le,
-            "lt": lt, "why": why, "path": path}
+            "lt": lt, "why": why, "path": path, "many": many, "new": new}
     if isinstance(default, (tuple, dict)):
         return field(default_factory=lambda: type(default)(default), metadata=meta)
     return field(default=default, metadata=meta)
@@ -46,9 +49,12 @@ class CorpusConfig:
     dir: str = option("", "folder with the manifests (and audio); `--corpus-dir` sets it; `\"builtin:demo\"` "
                           "synthesises the demo corpus into `OUT/demo-corpus`", path=True)
     audio_dir: str = option("", "audio folder, relative to `dir`; default `dir/audio` if it exists, else `dir`")
-    audio_template: str = option("", "audio file name pattern; empty means the reader's default (`{youtube_id}.wav` "
-                                     "for AudioCaps; also `{audiocap_id}`, `{start_time}`), e.g. "
-                                     "`\"Y{youtube_id}.wav\"`")
+    audio_template: str = option("", "audio file name pattern, or a list of patterns tried in order for each clip "
+                                     "(the first file that exists is used); empty means the reader's default (for "
+                                     "AudioCaps the usual download names, `{youtube_id}.wav`, `Y{youtube_id}.wav`, "
+                                     "`{youtube_id}_{start_time}.wav`, `{audiocap_id}.wav` and the same in `.flac`; "
+                                     "fields `{youtube_id}`, `{audiocap_id}`, `{start_time}`), e.g. "
+                                     "`\"Y{youtube_id}.wav\"`", many=True)
     check: str = option("full", "how much each clip is checked before planning: `full` (decode: catches NaN/Inf, "
                                 "and silence in the `audio.duration` seconds a scene uses), `header`, `exists`, "
                                 "`none` (trust the manifest; a silent source is then an error at render time)",
@@ -63,7 +69,10 @@ class SplitConfig:
     """One split (any name; the presets use `train`, `val`, `test`). Clips are drawn only
     from the split's own manifest, so a corpus' split is kept."""
 
-    manifest: str = option("", "manifest file, relative to `corpus.dir`")
+    manifest: str = option("", "manifest file, relative to `corpus.dir`. Several splits may share one plain "
+                               "manifest whose `split` column says which rows are whose")
+    audio_dir: str = option("", "this split's audio folder, relative to `corpus.dir` (e.g. Clotho's `development`); "
+                                "default `corpus.audio_dir`", new=True)
     count: int = option(0, "scenes to make (`--split NAME=COUNT` overrides)", unit="scenes", ge=0)
     rooms: tuple = option((), "RIR-bank rooms this split may use (bank datasets), by name or number. Empty: the "
                               "rooms no other split names (every room when no split names any), so a split never "
@@ -97,7 +106,7 @@ class SceneConfig:
                                        "planar array a source straight overhead) or `diffuse` (a diffuse field at "
                                        "the array: mic coherence sinc(kd), FOA W:Y:Z:X energies 1:1/3:1/3:1/3, "
                                        "uncorrelated; docs/acoustics.md); its level is defined the same way",
-                           choices=Additive)
+                           choices=Additive, new=True)
     interferers: Dist = dist(1, "interferers per scene (a distribution is allowed); in `directional+additive` the "
                                 "first is additive", unit="sources", ge=1, why="a scene holds at least two sources",
                      integer=True)
@@ -170,7 +179,8 @@ class OutputConfig:
                              unit="scenes", ge=1)
     audio: str = option("float32", "how shards store audio: `float32`; `int16` (half the bytes, rounding at about "
                                    "-101 dBFS); `flac` (lossless over int16, about a third of float32's bytes); every "
-                                   "coding reads back as float32 (docs/format.md)", choices=AudioCoding)
+                                   "coding reads back as float32 (docs/format.md)", choices=AudioCoding,
+                        new=True)
 
 
 @dataclass(frozen=True)
@@ -191,8 +201,16 @@ class Config:
     sources: SourcesConfig = field(default_factory=SourcesConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
-    def to_dict(self) -> dict:
-        return jsonable(self)
+    def to_dict(self, every_key: bool = False) -> dict:
+        """The config as plain data; keys declared ``new`` only when set (``every_key``:
+        all of them, as ``tsel presets NAME`` prints)."""
+        d = jsonable(self)
+        if not every_key:
+            for name, sec in ((sec, getattr(self, sec)) for sec in SECTIONS):
+                _drop_unset(sec, d[name])
+            for name, sp in self.splits.items():
+                _drop_unset(sp, d["splits"][name])
+        return d
 
     def rooms_by_split(self) -> dict:
         """``splits.NAME.rooms`` of every split."""
@@ -209,6 +227,14 @@ SECTIONS = {
 }
 TOP_KEYS = ("name", "seed", "on_bad_clip", "splits", *SECTIONS)
 TOP_FIELDS = ("name", "seed", "on_bad_clip")
+
+
+def _drop_unset(section, d: dict) -> None:
+    """Remove from ``d`` (a section as plain data) the ``new`` keys left at their default."""
+    default = type(section)()
+    for f in fields(section):
+        if f.metadata.get("new") and getattr(section, f.name) == getattr(default, f.name):
+            d.pop(f.name, None)
 
 
 def field_specs(cls) -> list:

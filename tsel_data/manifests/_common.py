@@ -219,6 +219,63 @@ def check_template(name: str, template: str, allowed: Sequence[str]) -> None:
                    f"fields are strings; use {listed} without format specs") from None
 
 
+def template_list(template, default: Sequence[str]) -> tuple[str, ...]:
+    """The audio templates a reader tries: ``template`` (a string, or a sequence tried in
+    order), or ``default`` when it is None or empty."""
+    if not template:
+        return tuple(default)
+    return (template,) if isinstance(template, str) else tuple(template)
+
+
+class FileIndex:
+    """Which files exist, one directory listing per folder (a 50k-file folder lists in
+    tens of milliseconds; a ``stat`` per candidate name would take seconds)."""
+
+    def __init__(self):
+        self._names: dict[str, frozenset] = {}
+        self._audio: dict[str, bool] = {}
+
+    def listing(self, folder: str) -> frozenset:
+        """The names in ``folder`` (empty if it does not exist)."""
+        names = self._names.get(folder)
+        if names is None:
+            try:
+                names = frozenset(os.listdir(folder))
+            except OSError:  # no such folder, or not readable: nothing is there
+                names = frozenset()
+            self._names[folder] = names
+        return names
+
+    def holds_audio(self, folder: str) -> bool:
+        """Whether any name in ``folder`` ends with an audio extension."""
+        held = self._audio.get(folder)
+        if held is None:
+            held = self._audio[folder] = any(n.lower().endswith(AUDIO_EXTENSIONS) for n in self.listing(folder))
+        return held
+
+    def exists(self, base: str, rel: str) -> bool:
+        """Whether ``rel`` (relative to the absolute folder ``base``, or absolute) exists."""
+        if _SIMPLE and "/" not in rel and rel[:1] not in ("~", "."):
+            return rel in self.listing(base)  # a plain name: no path to build
+        folder, name = os.path.split(resolve(base, rel))
+        return name in self.listing(folder)
+
+
+def first_file(base: str, rels, index: FileIndex) -> str:
+    """The first of the relative names ``rels`` (an iterable, formatted lazily) that
+    exists under ``base``, resolved; the first one when none does (the clip check then
+    reports it missing)."""
+    first = None
+    for rel in rels:
+        if first is None:
+            first = rel
+            if "/" not in rel and not index.holds_audio(base):
+                break  # no audio file here at all (nothing downloaded yet): no candidate can exist
+        if index.exists(base, rel):
+            return resolve(base, rel)
+    return resolve(base, first)
+
+
 def strip_audio_ext(s: str) -> str:
     """``Yabc.wav`` -> ``Yabc``; other strings unchanged."""
     if "." not in s:

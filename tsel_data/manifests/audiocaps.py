@@ -11,17 +11,21 @@ from __future__ import annotations
 import re
 
 from ..clip import Clip
-from ._common import (CsvTable, base_dir, check_template, empty_error, fail, gc_paused,
-                      manifest_name, pick_split, read_text, resolve)
+from ._common import (CsvTable, FileIndex, base_dir, check_template, empty_error, fail, first_file,
+                      gc_paused, manifest_name, pick_split, read_text, resolve, template_list)
 
 COLUMNS = ("audiocap_id", "youtube_id", "start_time", "caption")
 TEMPLATE_FIELDS = ("youtube_id", "audiocap_id", "start_time")
+# What AudioCaps downloads are called by the common download tools (plain ids, AudioSet's
+# Y prefix, id and start, the caption id), WAV or FLAC: the default tries them in turn.
+DEFAULT_TEMPLATES = ("{youtube_id}.wav", "Y{youtube_id}.wav", "{youtube_id}_{start_time}.wav", "{audiocap_id}.wav",
+                     "{youtube_id}.flac", "Y{youtube_id}.flac", "{youtube_id}_{start_time}.flac",
+                     "{audiocap_id}.flac")
 _SECONDS = re.compile(r"\d+(\.\d*)?|\.\d+", re.ASCII)  # plain decimal: no sign, exponent, nan, _
 
 
 @gc_paused()
-def read_audiocaps(path, audio_dir=None, template: str = "{youtube_id}.wav",
-                   split: str | None = None) -> list[Clip]:
+def read_audiocaps(path, audio_dir=None, template=None, split: str | None = None) -> list[Clip]:
     """Read an AudioCaps caption CSV into clips, one per ``(youtube_id, start_time)``.
 
     path:      the CSV (``train.csv``, ``val.csv``, ``test.csv`` or any name).
@@ -29,7 +33,10 @@ def read_audiocaps(path, audio_dir=None, template: str = "{youtube_id}.wav",
     template:  audio file name inside ``audio_dir``, a ``str.format`` pattern with fields
                ``{youtube_id}``, ``{audiocap_id}`` (the clip's first row) and
                ``{start_time}`` (as written), e.g. ``Y{youtube_id}.wav`` or
-               ``{audiocap_id}.wav``; may contain sub-folders.
+               ``{audiocap_id}.wav``; may contain sub-folders. A list of patterns is
+               tried in order per clip: the first file that exists is the clip's audio
+               (none: the first pattern's). Default: :data:`DEFAULT_TEMPLATES`, the
+               names the common download tools give, so mixed downloads just work.
     split:     split of every clip; default from the file name (``train.csv`` ->
                ``train``, ``val``, ``test``), else None.
 
@@ -40,7 +47,9 @@ def read_audiocaps(path, audio_dir=None, template: str = "{youtube_id}.wav",
     Raises ManifestError (file and line) for every malformed input.
     """
     name = manifest_name(path)
-    check_template(name, template, TEMPLATE_FIELDS)
+    templates = template_list(template, DEFAULT_TEMPLATES)
+    for t in templates:
+        check_template(name, t, TEMPLATE_FIELDS)
     table = CsvTable(name, read_text(name), COLUMNS, ",".join(COLUMNS))
     i_aid, i_yt, i_st, i_cap = (table.index[c] for c in COLUMNS)
 
@@ -76,11 +85,16 @@ def read_audiocaps(path, audio_dir=None, template: str = "{youtube_id}.wav",
     base = base_dir(name, audio_dir)
     split = pick_split(split, name)
     clips = []
+    files = FileIndex()
     for line, yt, st, start, aids, caps in groups.values():
-        rel = template.format(youtube_id=yt, audiocap_id=aids[0], start_time=st)
+        if len(templates) == 1:  # one name: no need to look at the disk
+            audio = resolve(base, templates[0].format(youtube_id=yt, audiocap_id=aids[0], start_time=st))
+        else:
+            audio = first_file(base, (t.format(youtube_id=yt, audiocap_id=aids[0], start_time=st)
+                                      for t in templates), files)
         clips.append(Clip(
             id=f"{yt}_{st}",
-            audio=resolve(base, rel),
+            audio=audio,
             captions=tuple(caps),
             offset=0.0,
             split=split,

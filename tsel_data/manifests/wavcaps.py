@@ -22,8 +22,8 @@ import math
 import os
 
 from ..clip import Clip
-from ._common import (base_dir, check_template, empty_error, fail, gc_paused, manifest_name,
-                      read_text, resolve, strip_audio_ext)
+from ._common import (FileIndex, base_dir, check_template, empty_error, fail, first_file, gc_paused, manifest_name,
+                      read_text, resolve, strip_audio_ext, template_list)
 
 TEMPLATE_FIELDS = ("id", "raw_id")
 _PLACEHOLDERS = {"wav_path", "flac_path", "audio_path", "path", "none", "null"}
@@ -66,14 +66,15 @@ def _captions(entry: dict, where: str) -> tuple[str, ...]:
 
 
 @gc_paused()
-def read_wavcaps(path, audio_dir=None, template: str = "{id}.flac",
+def read_wavcaps(path, audio_dir=None, template="{id}.flac",
                  split: str | None = None) -> list[Clip]:
     """Read one WavCaps collection JSON into clips, one per entry of ``data``.
 
     path:      the JSON file (e.g. ``as_final.json``).
     audio_dir: folder of that collection's audio; default the manifest's folder.
     template:  file name for entries without a usable ``audio`` path; fields ``{id}``
-               (id without an audio extension) and ``{raw_id}`` (as written).
+               (id without an audio extension) and ``{raw_id}`` (as written). A list of
+               patterns is tried in order per entry (the first file that exists).
     split:     split of every clip (WavCaps defines none; default None).
 
     Returns clips in file order: ``id`` = id without audio extension, ``offset = 0``,
@@ -83,7 +84,9 @@ def read_wavcaps(path, audio_dir=None, template: str = "{id}.flac",
     without id or caption, or an id that appears twice (naming both entries).
     """
     name = manifest_name(path)
-    check_template(name, template, TEMPLATE_FIELDS)
+    templates = template_list(template, ("{id}.flac",))
+    for t in templates:
+        check_template(name, t, TEMPLATE_FIELDS)
     text = read_text(name)
     try:
         doc = json.loads(text)
@@ -101,6 +104,7 @@ def read_wavcaps(path, audio_dir=None, template: str = "{id}.flac",
     base = base_dir(name, audio_dir)
     first: dict[str, int] = {}
     clips = []
+    files = FileIndex()
     for n, entry in enumerate(entries, start=1):
         where = f"{name}:{n}"
         if not isinstance(entry, dict):
@@ -119,12 +123,14 @@ def read_wavcaps(path, audio_dir=None, template: str = "{id}.flac",
         first[cid] = n
         caps = _captions(entry, where)
         rel = _audio_value(entry.get("audio"))
-        if rel is None:
-            rel = template.format(id=cid, raw_id=raw_id)
+        if rel is None and len(templates) > 1:
+            audio = first_file(base, (t.format(id=cid, raw_id=raw_id) for t in templates), files)
+        else:
+            audio = resolve(base, rel if rel is not None else templates[0].format(id=cid, raw_id=raw_id))
         meta = {"raw_id": raw_id}
         dur = entry.get("duration")
         if isinstance(dur, (int, float)) and not isinstance(dur, bool) and math.isfinite(dur):
             meta["duration"] = float(dur)
-        clips.append(Clip(id=cid, audio=resolve(base, rel), captions=caps, offset=0.0,
+        clips.append(Clip(id=cid, audio=audio, captions=caps, offset=0.0,
                           split=split, origin=where, meta=meta))
     return clips

@@ -49,6 +49,7 @@ class ShardEntry:
     scenes: int
     sha256: str = ""
     json_sha256: str = ""
+    first: int | None = None  # index of its first scene (None: after the shards before it)
 
     def to_json(self) -> dict:
         return {"file": self.file, "json": self.json, "scenes": self.scenes, "sha256": self.sha256,
@@ -58,7 +59,10 @@ class ShardEntry:
 @dataclass(frozen=True)
 class DatasetDoc:
     """A parsed ``dataset.json``. ``splits``: {name: [ShardEntry]} in file order;
-    ``counts``: {name: scenes the split lists}; ``raw``: the whole document."""
+    ``counts``: {name: scenes the split lists}; ``raw``: the whole document.
+    ``finished``: False for the finished shards of a dataset still being made
+    (:func:`~tsel_data.store.plans.unfinished_doc`); ``planned``: {name: scenes the
+    plan asks}, ``shards_planned``: shards the plan asks in all (then)."""
 
     path: str
     fs: int
@@ -69,9 +73,21 @@ class DatasetDoc:
     splits: dict
     counts: dict
     raw: dict = field(default_factory=dict, repr=False)
+    finished: bool = True
+    planned: dict = field(default_factory=dict)
+    shards_planned: int = 0
 
     def shards(self, split: str) -> list[ShardEntry]:
         return self.splits[split]
+
+    def unfinished_note(self, root: str) -> str | None:
+        """One line for tools that read a dataset still being made (None when finished)."""
+        if self.finished:
+            return None
+        done = sum(len(v) for v in self.splits.values())
+        return (f"{root} is still being made (no dataset.json yet): {done} of {self.shards_planned} shards "
+                f"finished, " + ", ".join(f"{s} {self.counts[s]} of {n}" for s, n in self.planned.items())
+                + " scenes; showing those")
 
 
 def dataset_doc(config: dict, seed: int, attrs: dict, splits: dict[str, list[ShardEntry]]) -> dict:

@@ -4,6 +4,7 @@
     OUT/plan/config.json        the resolved config the plan was made with
     OUT/plan/{split}.jsonl      one scene recipe per line
     OUT/bad_clips.jsonl         clips skipped by the bad-clip policy
+    OUT/missing_clips.json      clips whose audio file is absent (a partial download), per split
     OUT/{split}/shard-NNNNN.h5  audio and labels; .json: the same scenes' records;
                                 .seal.json: what the shard was made from, and its checksums
     OUT/.tsel.lock              the dataset's lock; its presence marks the folder as ours
@@ -18,6 +19,7 @@ DATASET_FILE = "dataset.json"
 PLAN_DIR = "plan"
 CONFIG_FILE = f"{PLAN_DIR}/config.json"
 BAD_CLIPS_FILE = "bad_clips.jsonl"
+MISSING_CLIPS_FILE = "missing_clips.json"
 DEMO_CORPUS_DIR = "demo-corpus"
 DEMO_BANK_FILE = "demo-bank.h5"
 LOCK_FILE = ".tsel.lock"
@@ -58,6 +60,10 @@ class Layout:
     @property
     def bad_clips_file(self) -> str:
         return self.path(BAD_CLIPS_FILE)
+
+    @property
+    def missing_clips_file(self) -> str:
+        return self.path(MISSING_CLIPS_FILE)
 
     @property
     def demo_corpus(self) -> str:

@@ -12,8 +12,10 @@ import os
 from dataclasses import dataclass
 
 from ..errors import DatasetError
+from ..geometry import CHANNEL_NAMES
 from ..recipe import SceneRecipe, read_plan
 from ..version import __version__
+from .dataset import DatasetDoc, ShardEntry
 from .layout import CONFIG_FILE, Layout, shard_names
 
 
@@ -48,10 +50,14 @@ def shard_sealed(layout: Layout, task: ShardTask) -> bool:
                                            layout.seal_file(task.split, task.shard)))
 
 
-def plan_doc(config: dict, clips: dict[str, int], bad_clips: int) -> dict:
+def plan_doc(config: dict, clips: dict[str, int], bad_clips: int, missing_clips: dict[str, int] | None = None) -> dict:
     """The document of ``plan/config.json``: tool, version, the resolved config as plain
-    data, usable clips per split and the number of bad clips."""
-    return {"tool": "tsel-data", "version": __version__, "config": config, "clips": clips, "bad_clips": bad_clips}
+    data, usable clips per split, the number of bad clips and, when audio files are
+    missing, how many per split."""
+    doc = {"tool": "tsel-data", "version": __version__, "config": config, "clips": clips, "bad_clips": bad_clips}
+    if missing_clips:
+        doc["missing_clips"] = missing_clips
+    return doc
 
 
 def has_plan(layout: Layout) -> bool:
@@ -89,6 +95,15 @@ def read_split_plan(layout: Layout, split: str) -> list[SceneRecipe]:
     return read_plan(layout.plan_file(split))
 
 
+def read_plan_lines(layout: Layout, split: str) -> list[str]:
+    """The recipe lines of a split's plan file as written (none when there is no file)."""
+    path = layout.plan_file(split)
+    if not os.path.isfile(path):
+        return []
+    with open(path, encoding="utf-8") as f:
+        return [line.rstrip("\n") for line in f if line.strip()]
+
+
 def plan_ids(layout: Layout, split: str) -> list[str] | None:
     """The scene ids of a split's plan file, in order (None when there is no such file)."""
     path = layout.plan_file(split)
@@ -96,3 +111,30 @@ def plan_ids(layout: Layout, split: str) -> list[str] | None:
         return None
     with open(path, encoding="utf-8") as f:
         return [json.loads(line)["scene_id"] for line in f if line.strip()]
+
+
+def unfinished_doc(layout: Layout) -> DatasetDoc:
+    """A :class:`~tsel_data.store.dataset.DatasetDoc` of the shards finished so far, for
+    a dataset still being made (a plan, no ``dataset.json``): every shard whose two files
+    exist under their final names (the writer renames them last), with the index of its
+    first scene, so tools can read them while the rest renders."""
+    doc = read_plan_doc(layout)
+    cfg = doc["config"]
+    try:
+        size = int(cfg["output"]["shard_size"])
+        counts = {s: int(v.get("count", 0)) for s, v in cfg["splits"].items() if v.get("count")}
+        fs, hop, fmt = int(cfg["audio"]["fs"]), float(cfg["audio"]["label_hop"]), str(cfg["scene"]["format"])
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise DatasetError(f"{layout.config_file} is incomplete ({type(e).__name__}: {e}); plan again into a new "
+                           f"--out") from None
+    tasks = shard_tasks(counts, size)
+    splits: dict[str, list[ShardEntry]] = {s: [] for s in counts}
+    for t in tasks:
+        if shard_sealed(layout, t):
+            h5, js = t.files
+            splits[t.split].append(ShardEntry(h5, js, t.stop - t.start, first=t.start))
+    return DatasetDoc(path=layout.config_file, fs=fs, label_hop=hop, format=fmt,
+                      channel_names=list(CHANNEL_NAMES.get(fmt, ())), config=cfg, splits=splits,
+                      counts={s: sum(e.scenes for e in v) for s, v in splits.items()},
+                      raw={"seed": cfg.get("seed", 0), "config": cfg}, finished=False, planned=counts,
+                      shards_planned=len(tasks))

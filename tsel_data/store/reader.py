@@ -25,6 +25,8 @@ from ..h5str import as_str
 from ..choices import AudioCoding
 from .codings import coding_of, decode
 from .dataset import DatasetDoc, load_dataset_doc
+from .layout import Layout
+from .plans import has_plan, unfinished_doc
 from .records import LABEL_KEYS, SceneRecord
 
 
@@ -113,11 +115,11 @@ class SceneDataset:
     records without touching audio. Negative indices count from the end.
     """
 
-    def __init__(self, root: str, split: str, *, load_records: bool = True):
+    def __init__(self, root: str, split: str, *, load_records: bool = True, unfinished: bool = False):
         self.root = os.fspath(root)
         self.split = split
         self.load_records = load_records
-        self.doc: DatasetDoc = load_dataset_doc(self.root)
+        self.doc: DatasetDoc = dataset_doc(self.root, unfinished)
         if split not in self.doc.splits:
             have = ", ".join(sorted(self.doc.splits)) or "none"
             raise DatasetError(f"{self.root}: no split {split!r} in dataset.json; available splits: {have}")
@@ -129,6 +131,8 @@ class SceneDataset:
                 f"(first: {missing[0]}); re-run `tsel generate` with the same --out to resume"
             )
         self._starts = list(np.cumsum([0] + [s.scenes for s in self.shards]))
+        # each shard's first scene index in the split (not its position, while shards are missing)
+        self._first = [int(self._starts[k]) if s.first is None else s.first for k, s in enumerate(self.shards)]
         self.fs = self.doc.fs
         self.label_hop = self.doc.label_hop
         self.format = self.doc.format
@@ -264,7 +268,7 @@ class SceneDataset:
     def get(self, i: int, audio: bool = True) -> Scene:
         """Scene ``i``; ``audio=False`` skips the audio read (labels and metadata only)."""
         k, r = self.locate(i)
-        i = self._starts[k] + r
+        i = self._first[k] + r
         m = self._shard(k)
         rec = self._record(k, r)
         # Shards pad S to their largest scene; trim to this scene's own sources.
@@ -341,6 +345,14 @@ class SceneDataset:
             for r in range(len(self._records(k))):
                 yield self._record(k, r)
 
+    def position_of(self, index: int) -> int:
+        """The position (``ds[position]``) of the scene with index ``index`` in its split:
+        the same number for a finished dataset; IndexError while its shard is missing."""
+        for k, first in enumerate(self._first):
+            if first <= index < first + self.shards[k].scenes:
+                return int(self._starts[k]) + index - first
+        raise IndexError(index)
+
     def scene_ids(self) -> list[str]:
         ids = self._id_index()
         return sorted(ids, key=ids.__getitem__)
@@ -379,9 +391,20 @@ def load_manifest(root: str) -> dict:
     return load_dataset_doc(root).raw
 
 
-def list_splits(root: str) -> list[str]:
-    """Split names of a dataset, in dataset.json order."""
-    return list(load_dataset_doc(root).splits)
+def list_splits(root: str, unfinished: bool = False) -> list[str]:
+    """Split names of a dataset, in dataset.json order (``unfinished``: also of a
+    dataset still being made, in plan order)."""
+    return list(dataset_doc(root, unfinished).splits)
+
+
+def dataset_doc(root: str, unfinished: bool = False) -> DatasetDoc:
+    """``dataset.json`` parsed; with ``unfinished``, a dataset still being made (a plan,
+    no ``dataset.json``) gives the doc of its finished shards (``doc.finished`` False)."""
+    root = os.fspath(root)
+    layout = Layout(root)
+    if unfinished and not os.path.exists(layout.dataset_file) and has_plan(layout):
+        return unfinished_doc(layout)
+    return load_dataset_doc(root)
 
 
 def open_dataset(root: str, split: str = "train", **kwargs) -> SceneDataset:
@@ -394,6 +417,11 @@ def open_dataset(root: str, split: str = "train", **kwargs) -> SceneDataset:
     split : str
     load_records : bool, keyword
         Parse the JSON records (``Scene.record``); False leaves them None.
+    unfinished : bool, keyword
+        Also open a dataset still being made (no ``dataset.json`` yet): the scenes of
+        the shards finished so far, in index order (``ds.doc.finished`` is False;
+        ``Scene.index`` is the scene's index in the split, ``ds.position_of(index)``
+        finds it). Trainers should read finished datasets only.
 
     Returns
     -------

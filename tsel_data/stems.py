@@ -1,0 +1,68 @@
+"""Each source of a stored scene alone: rendered again from the scene's recipe.
+
+A dataset keeps only the mixture. Its plan (``plan/{split}.jsonl``) holds the recipe of
+every scene, and a recipe determines its scene, so the renderer can give the target
+alone and each interferer alone, exactly as they sound in the mix (same RIRs, gains and
+anti-clipping gain: the stems add up to the stored mixture). ``tsel inspect --wav``
+writes them as headphone previews (:mod:`tsel_data.stereo`).
+
+This needs what rendering needs: the plan file and the clips (and the RIR bank) the
+recipe names, where they were when the dataset was made.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .audio import save_wav
+from .errors import DatasetError
+from .recipe import SceneRecipe
+from .render import mix_parts
+from .stereo import stereo_preview
+from .store.layout import Layout
+from .store.plans import read_plan_lines
+
+# The stored mixture and the one rendered again agree to float32 rounding; more means the
+# clips or the bank changed since the dataset was made.
+MATCH_TOLERANCE = 1e-4
+
+
+def scene_recipe(root: str, split: str, index: int, scene_id: str) -> SceneRecipe:
+    """The recipe of scene ``index`` of ``split`` from the dataset's plan."""
+    layout = Layout(root)
+    lines = read_plan_lines(layout, split)
+    if index >= len(lines):
+        raise DatasetError(f"{layout.plan_file(split)} has no recipe for {scene_id} (the plan is missing or "
+                           f"shorter); the stems are rendered from the scene's recipe")
+    recipe = SceneRecipe.from_json(lines[index])
+    if recipe.scene_id != scene_id:
+        raise DatasetError(f"{layout.plan_file(split)}: line {index + 1} is {recipe.scene_id}, not {scene_id}; the "
+                           f"plan does not belong to these shards")
+    return recipe
+
+
+def render_stems(recipe: SceneRecipe, mixture: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+    """Every source alone, float32 [S, C, T], as it sounds in the scene; and whether
+    their sum matches ``mixture`` (the stored audio, when given) within
+    :data:`MATCH_TOLERANCE`."""
+    parts = mix_parts(recipe)
+    stems = parts.stems()
+    same = mixture is None or float(np.max(np.abs(parts.mix - mixture))) <= MATCH_TOLERANCE
+    return stems, same
+
+
+def write_stems(root: str, scene, base: str) -> tuple[list[str], bool]:
+    """Write a headphone preview of each source alone next to ``base`` (a WAV path):
+    ``BASE.target.stereo.wav``, ``BASE.interferer1.stereo.wav``, ... Returns the paths
+    and whether the stems match the stored mixture (False: the clips changed since)."""
+    recipe = scene_recipe(root, scene.split, scene.index, scene.scene_id)
+    stems, same = render_stems(recipe, scene.audio)
+    stem = os.path.splitext(base)[0]
+    paths = []
+    for k, src in enumerate(recipe.sources):
+        name = "target" if k == 0 else f"interferer{k}"
+        path = f"{stem}.{name}.stereo.wav"
+        save_wav(path, stereo_preview(stems[k], recipe.array.format).T, recipe.fs)
+        paths.append(path)
+    return paths, same
