@@ -5,6 +5,7 @@ line on stderr, exit code 2, no traceback)."""
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import tomllib
 from pathlib import Path
@@ -102,7 +103,10 @@ def test_licence_is_an_spdx_string():
 
 
 def _digests(root: Path) -> dict[str, str]:
-    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+    # a seal records its files' modification times, so it is the one file of two equal
+    # datasets that differs; its fingerprint must not
+    return {str(p.relative_to(root)): (json.loads(p.read_text())["fingerprint"] if p.name.endswith(".seal.json")
+                                       else hashlib.sha256(p.read_bytes()).hexdigest())
             for p in sorted(root.rglob("*")) if p.is_file()}
 
 

@@ -26,6 +26,7 @@ File names start with ``fold{n}_`` because the DCASE baselines read the fold fro
 from __future__ import annotations
 
 import csv
+import json
 import io
 import os
 

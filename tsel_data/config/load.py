@@ -83,6 +83,11 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
     raw: dict = {}
     origins: dict[str, str] = {}
     for label, table in layers:
+        clash = _table_over_value(raw, table)
+        if clash:
+            raise ConfigError(f"{label}: {clash} is set to a value, not a table (by {origins.get(clash, 'the config')}); "
+                              f"set the keys inside it instead (e.g. {clash}.count)" if clash.startswith("splits.")
+                              else f"{label}: {clash} is set to a value, not a table (by {origins.get(clash, 'the config')})")
         raw = _merge(raw, table)
         origins.update((key, label) for key in _leaf_keys(table))
     base = path or (f"preset {preset}" if preset else "config")
@@ -182,6 +187,18 @@ def _leaf_keys(table, prefix: str = ""):
             yield from _leaf_keys(v, key + ".")
         else:
             yield key
+
+
+def _table_over_value(a: dict, b: dict, prefix: str = "") -> str | None:
+    """The first key that ``b`` sets keys inside while ``a`` holds a plain value there."""
+    for k, v in b.items():
+        if isinstance(v, dict) and k in a:
+            if not isinstance(a[k], dict):
+                return prefix + str(k)
+            inner = _table_over_value(a[k], v, f"{prefix}{k}.")
+            if inner:
+                return inner
+    return None
 
 
 def _merge(a: dict, b: dict) -> dict:
