@@ -49,9 +49,13 @@ class Dataset(torch.utils.data.Dataset):
     transform : callable, optional
         ``transform(item) -> item``.
     query : str
-        ``"dataset"``: the scene's query as planned; ``"any"``: one of the target's
-        captions, drawn per (seed, epoch, index) among those that pass the dataset's
-        ambiguity guard against every other source's captions (never an ambiguous one).
+        ``"dataset"``: the scene's query as planned; ``"any"``: drawn per (seed, epoch,
+        index) among the scene's queries that are as true and unambiguous as its own:
+        for a caption, the target's captions that pass the dataset's ambiguity guard
+        against every other source's captions; for a relational or composite query, the
+        other wordings of the same relation (never a caption, which a same-kind
+        distractor may make ambiguous). Records of extended queries list these
+        (``query_alternatives``, decided with the dataset's own caption similarity).
     with_record : bool
         Add the scene's :class:`~tsel_data.store.records.SceneRecord` (batch with
         :func:`collate`).
@@ -106,8 +110,11 @@ class Dataset(torch.utils.data.Dataset):
         if self.query == "dataset" or scene.record is None:
             return scene.query
         rec = scene.record
-        pool = answerable_queries(rec.sources[0].captions, [s.captions for s in rec.sources[1:]],
-                                  getattr(self.scenes, "caption_similarity", 0.5)) or [scene.query]
+        if rec.extended:
+            pool = list(rec.query_alternatives or ()) or [scene.query]
+        else:
+            pool = answerable_queries(rec.sources[0].captions, [s.captions for s in rec.sources[1:]],
+                                      getattr(self.scenes, "caption_similarity", 0.5)) or [scene.query]
         rng = np.random.default_rng([getattr(self.scenes, "seed", 0), epoch, i, 1])
         return pool[int(rng.integers(len(pool)))]
 

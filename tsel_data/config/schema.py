@@ -10,30 +10,30 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-from ..choices import (ArrayFormat, AudioCoding, BadClipPolicy, CheckLevel, CorpusFormat, Motion, PathKind,
-                       RirMethod, Scenario, values)
+from ..choices import (ArrayFormat, AudioCoding, BadClipPolicy, CheckLevel, CorpusFormat, Motion, Pairing, PathKind,
+                       QueryType, Relation, RirMethod, Scenario, SimilarityMeasure, values)
 from ..distributions import Dist
 from ..jsonable import jsonable
 
 
 def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, le=None, lt=None, why: str = "",
-           path: bool = False):
+           path: bool = False, quiet: bool = False):
     """A plain field: ``unit`` (shown in docs and messages), ``choices`` (an enumeration),
     ``ge``/``gt``/``le``/``lt`` (bounds), ``why`` (a reason shown when a bound fails),
-    ``path`` (resolved against a config file's folder)."""
+    ``path`` (resolved against a config file's folder), ``quiet`` (see :meth:`Config.to_dict`)."""
     meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": le,
-            "lt": lt, "why": why, "path": path}
+            "lt": lt, "why": why, "path": path, "quiet": quiet}
     if isinstance(default, (tuple, dict)):
         return field(default_factory=lambda: type(default)(default), metadata=meta)
     return field(default=default, metadata=meta)
 
 
 def dist(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, why: str = "",
-         integer: bool = False):
+         integer: bool = False, quiet: bool = False):
     """A sampled field (a constant or a distribution); bounds apply to every value it can
     draw; ``integer``: a count, so a constant or a ``choose`` of whole numbers."""
     meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": None,
-            "lt": None, "why": why, "path": False, "dist": True, "integer": integer}
+            "lt": None, "why": why, "path": False, "dist": True, "integer": integer, "quiet": quiet}
     return field(default_factory=lambda: Dist.parse(default, "default"), metadata=meta)
 
 
@@ -56,6 +56,10 @@ class CorpusConfig:
     min_duration: float = option(1.0, "shorter clips are bad clips", unit="s")
     max_channels: int = option(8, "a file with more channels is a bad clip (probably not a recording)",
                                unit="channels")
+    caption_embeddings: str = option("", "an `.npz` of caption vectors (`captions` [N] str, `vectors` [N, D]; CLAP or "
+                                         "MiniLM embeddings made elsewhere, or by `tsel corpus embed`) for "
+                                         "`scene.similarity = \"embeddings\"`; it must hold every caption of the "
+                                         "corpus", path=True, quiet=True)
 
 
 @dataclass(frozen=True)
@@ -101,9 +105,46 @@ class SceneConfig:
                                           "sources hold it on every frame or none, a moving source may cross "
                                           "another for the rest (at 40 °/s a 10 s walk goes all the way round)",
                                      unit="fraction", gt=0.0, le=1.0)
-    caption_similarity: float = option(0.5, "an interferer is rejected if any of its captions shares more than this "
-                                            "word overlap (Jaccard, function words ignored) with the query, so the "
-                                            "query picks out one source", unit="Jaccard 0-1")
+    caption_similarity: float = option(0.5, "the ambiguity guard: an interferer is rejected if any of its captions is "
+                                            "more similar than this to the query caption (`similarity`), so the "
+                                            "caption picks out one source", unit="similarity 0-1")
+    similarity: str = option("words", "the caption similarity of the guard, pairing and same-kind distractors: "
+                                      "`words` (word-set Jaccard, function words ignored), `tfidf` (TF-IDF cosine over "
+                                      "the split's captions, word stems; recommended), `embeddings` (cosine of "
+                                      "`corpus.caption_embeddings`); docs/queries.md", choices=SimilarityMeasure, quiet=True)
+    query: Dist = dist("caption", "what the query is: `caption` (one caption of the target), `relational` (\"the "
+                                  "loudest sound\"), `composite` (a caption plus a relation, with a same-kind "
+                                  "distractor), or a `choose` of them with weights; relations are decided on the "
+                                  "rendered scene (docs/queries.md)", choices=QueryType, quiet=True)
+    relations: tuple = option(tuple(r.value for r in Relation),
+                              "relations relational and composite queries may state (docs/queries.md), tried in "
+                              "a random order per scene until one holds with its margin", quiet=True)
+    pairing: str = option("random", "interferers: `random` (any clip passing the guard), `hard` (caption similarity "
+                                    "in [`hard_similarity`, `caption_similarity`]: close but not the same sound), "
+                                    "`easy` (at most `easy_similarity`)", choices=Pairing, quiet=True)
+    hard_similarity: float = option(0.25, "lower end of the `hard` pairing band (the upper end is "
+                                          "`caption_similarity`)", unit="similarity 0-1", gt=0.0, le=1.0,
+                                    why="a hard interferer shares something with the query", quiet=True)
+    easy_similarity: float = option(0.05, "an `easy` interferer's captions are at most this similar to the query "
+                                          "caption", unit="similarity 0-1", ge=0.0, le=1.0, quiet=True)
+    same_kind_distractors: float = option(0.0, "probability that an interferer is a different clip of the target's "
+                                               "kind (caption similarity at least `same_kind_similarity`); such "
+                                               "scenes get a composite or relational query, never a bare caption",
+                                          unit="probability", ge=0.0, le=1.0, quiet=True)
+    same_kind_similarity: float = option(0.6, "a same-kind distractor's captions are at least this similar to the "
+                                              "query caption", unit="similarity 0-1", gt=0.0, le=1.0, quiet=True)
+    margin_level: float = option(3.0, "loudest / quietest: the target's level at the array differs from every "
+                                      "other source's by at least this (same-kind distractors get |TIR| of at least "
+                                      "this plus 0.5 dB)", unit="dB", gt=0.0, quiet=True)
+    margin_distance: float = option(0.5, "nearest / farthest: the target is at least this much nearer / farther "
+                                         "than every other directional source, on every label frame", unit="m",
+                                    gt=0.0, quiet=True)
+    margin_onset: float = option(0.5, "starts first / last: the target's first active frame is at least this "
+                                      "before / after every other source's", unit="s", gt=0.0, quiet=True)
+    margin_motion: float = option(10.0, "moving: the target's direction travels at least this far while every "
+                                        "other source stays put", unit="deg", gt=0.0, quiet=True)
+    margin_solo: float = option(1.0, "heard at T: the target is the only active source on every label frame "
+                                     "within this window centred on T", unit="s", gt=0.0, quiet=True)
     motion: str = option("static", "`static`, `moving` or `mixed`. In simulated rooms a moving source follows "
                                    "`path`, with an RIR at least every 100 ms and every 4°; with a bank it walks a "
                                    "bank trajectory, starting at a random point in a random direction",
@@ -185,8 +226,20 @@ class Config:
     sources: SourcesConfig = field(default_factory=SourcesConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
-    def to_dict(self) -> dict:
-        return jsonable(self)
+    def to_dict(self, full: bool = False) -> dict:
+        """The config as plain data. Keys declared ``quiet`` (added after format 1:
+        queries, pairing, similarity) are left out while they hold their defaults, so a
+        config that does not use them is the document earlier releases wrote (a dataset's
+        bytes and ``--resume`` of its plan stay as they were); ``full`` keeps every key."""
+        d = jsonable(self)
+        if full:
+            return d
+        for sec, cls in SECTIONS.items():
+            defaults = cls()
+            for f in fields(cls):
+                if f.metadata.get("quiet") and getattr(getattr(self, sec), f.name) == getattr(defaults, f.name):
+                    del d[sec][f.name]
+        return d
 
     def rooms_by_split(self) -> dict:
         """``splits.NAME.rooms`` of every split."""

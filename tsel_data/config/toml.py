@@ -15,7 +15,7 @@ def to_toml(cfg: Config, comments: bool = False, header: str = "") -> str:
     comments: put each key's help (and unit) above it. header: text written first as
     ``#`` comment lines (e.g. a preset's own description).
     """
-    d = cfg.to_dict()
+    d = cfg.to_dict(full=True)
     lines = [f"# {line}".rstrip() for line in header.splitlines()] + ([""] if header else [])
     top = {f.name: f for f in fields(Config)}
     for k in TOP_FIELDS:
