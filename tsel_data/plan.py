@@ -91,9 +91,10 @@ def bank_request(cfg: Config) -> BankRequest:
 def scene_rng(seed: int, split: str, index: int, stream: int = 0) -> np.random.Generator:
     """The generator of every draw of scene ``index`` of ``split``.
 
-    ``stream`` 1 is the scene's second, independent generator for query decisions (the
-    query type, same-kind draws, the relation order and wording), so they never shift
-    the draws of stream 0 (clips, levels, room, placement) that earlier releases made.
+    Streams 1 (query decisions: the query type, same-kind draws, the relation order and
+    wording) and 2 (each source's start, ``scene.onset``) are independent generators of
+    the same scene, so they never shift the draws of stream 0 (clips, levels, room,
+    placement) that earlier releases made.
     """
     key = [seed, zlib.crc32(split.encode("utf-8")), index]
     return np.random.default_rng(key if stream == 0 else key + [stream])
@@ -164,13 +165,14 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
         room, array, places, bank = _place_bank(cfg, rng, spatial, split, index, cat.bank_path)
     else:
         (room, array, places), bank = _place(cfg, rng, spatial, split, index), None
+    starts = _starts(cfg, split, index, len(chosen))
     sources = []
     for k, ci in enumerate(chosen):
         clip = cat.clips[ci]
         sources.append(Source(
             role=Role.TARGET if k == 0 else Role.INTERFERER, clip_id=clip.id, audio=clip.audio,
             captions=clip.captions, spatial=spatial[k], offset=clip.offset,
-            tir_db=None if tir[k] is None else round(tir[k], 4), **(places[k] or {}),
+            tir_db=None if tir[k] is None else round(tir[k], 4), start=starts[k], **(places[k] or {}),
         ))
     a = cfg.audio
     recipe = SceneRecipe(
@@ -274,6 +276,16 @@ class _QueryDraws:
                          wording=int(self.qrng.integers(1 << 30)), pairing=pairing,
                          pairings=tuple(self.pairings), similarity=tuple(sims), measure=str(sc.similarity),
                          margins=tuple((str(k), float(v)) for k, v in margins.items()))
+
+
+def _starts(cfg: Config, split: str, index: int, n: int) -> list[float]:
+    """Each source's start in the scene (``scene.onset``), from the scene's third stream so
+    that no other draw moves; all 0 (no draws) by default."""
+    onset = cfg.scene.onset
+    if onset.kind == "const" and float(onset.args[0]) == 0.0:
+        return [0.0] * n
+    rng = scene_rng(cfg.seed, split, index, stream=2)
+    return [round(float(onset.sample(rng)), 4) for _ in range(n)]
 
 
 def _pick_interferer(rng, cat: CatalogView, chosen: list[int], query_tokens, max_sim: float, split, index) -> int:

@@ -185,7 +185,7 @@ def composite_wordings(relation: str, caption: str, n: int, evidence: dict) -> t
     t = evidence.get("time")
     one = _ONE[relation][0 if n == 2 else 1].format(t=f"{t:.1f}" if t is not None else "")
     cap = caption.strip().rstrip(".")
-    low = cap if cap[:2].isupper() else cap[:1].lower() + cap[1:]
+    low = cap if cap[1:2].isupper() else cap[:1].lower() + cap[1:]  # "TV ..." keeps its capitals
     return tuple(w.format(Cap=cap[:1].upper() + cap[1:], cap=low, n=_NUMBERS[n] if n < len(_NUMBERS) else str(n),
                           one=one) for w in COMPOSITE_WORDINGS)
 

@@ -73,7 +73,8 @@ class Source:
     source, knots ``(t s, x, y, z m)`` in the room frame, linearly interpolated in time.
     bank: for bank-rendered sources, where in the bank (:class:`BankWalk`).
     tir_db: target-to-interferer ratio at the array for interferers (dB), None for the
-    target. offset: seconds into the audio file where the clip starts.
+    target. offset: seconds into the audio file where the clip starts. start: seconds
+    into the scene where the clip starts (silence before it; ``scene.onset``).
     """
 
     role: str
@@ -86,19 +87,23 @@ class Source:
     path: tuple[tuple[float, float, float, float], ...] | None = None
     bank: BankWalk | None = None
     tir_db: float | None = None
+    start: float = 0.0
 
     @property
     def moving(self) -> bool:
         return bool(self.path) or bool(self.bank and self.bank.moving)
 
     def to_dict(self) -> dict:
-        return {
+        d = {
             "role": self.role, "clip_id": self.clip_id, "audio": self.audio, "captions": list(self.captions),
             "spatial": self.spatial, "offset": self.offset,
             "position": None if self.position is None else list(self.position),
             "path": None if not self.path else [list(k) for k in self.path],
             "bank": None if self.bank is None else self.bank.to_dict(), "tir_db": self.tir_db,
         }
+        if self.start:  # absent when 0: recipes without scene.onset keep their bytes
+            d["start"] = self.start
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "Source":

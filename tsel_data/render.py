@@ -133,7 +133,8 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
     """
     fs, hop, nf = recipe.fs, recipe.label_hop, recipe.n_frames
     fmt = recipe.array.format
-    dry = np.stack([load_clip_cached(s.audio, fs, recipe.duration, s.offset) for s in recipe.sources])
+    dry = np.stack([_started(load_clip_cached(s.audio, fs, recipe.duration, s.offset), s.start, fs)
+                    for s in recipe.sources])
     active = np.stack([frame_activity(x, fs, hop, nf, recipe.activity_threshold_db) for x in dry])
 
     images, rt60_measured = spatial_images(recipe, dry)
@@ -198,6 +199,16 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
         **extra,
     )
     return RenderedScene(recipe.scene_id, query, mix, az, el, dist, active, mics, record, qinfo)
+
+
+def _started(x: np.ndarray, start: float, fs: int) -> np.ndarray:
+    """The clip as heard from ``start`` seconds into the scene: silence before, cut at the end."""
+    n = int(round(start * fs))
+    if n <= 0:
+        return x
+    out = np.zeros_like(x)
+    out[n:] = x[: max(len(x) - n, 0)]
+    return out
 
 
 def _blame_rirs(recipe: SceneRecipe, k: int) -> None:

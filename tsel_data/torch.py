@@ -25,7 +25,6 @@ except ImportError as e:  # pragma: no cover - exercised only without torch
 
 import numpy as np
 
-from .captions import answerable_queries
 from .executors import prepare_worker
 from .labels import scene_targets
 from .store.reader import open_dataset
@@ -109,12 +108,7 @@ class Dataset(torch.utils.data.Dataset):
     def _query(self, scene, epoch: int, i: int) -> str:
         if self.query == "dataset" or scene.record is None:
             return scene.query
-        rec = scene.record
-        if rec.extended:
-            pool = list(rec.query_alternatives or ()) or [scene.query]
-        else:
-            pool = answerable_queries(rec.sources[0].captions, [s.captions for s in rec.sources[1:]],
-                                      getattr(self.scenes, "caption_similarity", 0.5)) or [scene.query]
+        pool = scene.record.query_pool(getattr(self.scenes, "caption_similarity", 0.5))
         rng = np.random.default_rng([getattr(self.scenes, "seed", 0), epoch, i, 1])
         return pool[int(rng.integers(len(pool)))]
 

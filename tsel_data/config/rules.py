@@ -214,6 +214,10 @@ def _query_problems(cfg: Config, where: str) -> list[ConfigError]:
         out.append(ConfigError(f"{where}: scene.same_kind_similarity {sc.same_kind_similarity} must be above "
                                f"scene.caption_similarity {sc.caption_similarity}: a same-kind distractor is one the "
                                f"caption also describes"))
+    ob = sc.onset.bounds
+    if ob is not None and ob[1] >= cfg.audio.duration:
+        out.append(ConfigError(f"{where}: scene.onset can reach {ob[1]} s, but scenes last audio.duration = "
+                               f"{cfg.audio.duration} s; a source must start before the scene ends"))
     emb = cfg.corpus.caption_embeddings
     if sc.similarity == SimilarityMeasure.EMBEDDINGS and not emb:
         out.append(ConfigError(f"{where}: scene.similarity = \"embeddings\" needs corpus.caption_embeddings = "

@@ -127,6 +127,10 @@ class SceneConfig:
                                     why="a hard interferer shares something with the query", quiet=True)
     easy_similarity: float = option(0.05, "an `easy` interferer's captions are at most this similar to the query "
                                           "caption", unit="similarity 0-1", ge=0.0, le=1.0, quiet=True)
+    onset: Dist = dist(0.0, "when each source starts in the scene (silence before; the clip is cut at the scene's "
+                            "end): a constant or a distribution, drawn per source. Real clips sound from their "
+                            "first frame, so `starts_first` / `starts_last` queries need this, e.g. "
+                            "`[\"uniform\", 0.0, 3.0]`", unit="s", ge=0.0, quiet=True)
     same_kind_distractors: float = option(0.0, "probability that an interferer is a different clip of the target's "
                                                "kind (caption similarity at least `same_kind_similarity`); such "
                                                "scenes get a composite or relational query, never a bare caption",

@@ -14,6 +14,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ..captions import answerable_queries
 from ..recipe import BankWalk
 
 # Labels in the JSON are rounded: angles to 3 decimals, distances to 4, so the HDF5
@@ -216,6 +217,16 @@ class SceneRecord(_JsonMapping):
     def extended(self) -> bool:
         """Whether the record carries the query fields (extended queries, docs/queries.md)."""
         return self.query_wanted is not None
+
+    def query_pool(self, caption_similarity: float = 0.5) -> list[str]:
+        """Every query as true and unambiguous as ``query``: the recorded alternatives
+        (other wordings of the same relation, or the captions that pass the dataset's
+        own similarity guard), or for records without them the target's captions that
+        pass the word-set guard ``caption_similarity`` against every other source."""
+        if self.extended:
+            return list(self.query_alternatives or ()) or [self.query]
+        return answerable_queries(self.sources[0].captions, [s.captions for s in self.sources[1:]],
+                                  caption_similarity) or [self.query]
 
     def to_json(self) -> dict:
         d = {"scene_id": self.scene_id, "split": self.split, "index": self.index, "seed": self.seed,
