@@ -30,8 +30,11 @@ def stems(source: SceneSource, i: int, scene) -> np.ndarray:
     """Each source's contribution to the mixture [S, C, T], rebuilt from the recipe's clips
     and the record's gains, and checked to add up to the rendered mixture."""
     r = source.recipe(i)
-    dry = np.stack([load_clip_cached(s.audio, r.fs, r.duration, s.offset) for s in r.sources])
-    images, _ = spatial_images(r, dry)
+    dry = np.zeros((len(r.sources), r.n_samples))
+    for k, s in enumerate(r.sources):  # each clip from its start in the scene (scene.onset)
+        n0 = int(round(s.start * r.fs))
+        dry[k, n0:] = load_clip_cached(s.audio, r.fs, r.duration, s.offset)[: r.n_samples - n0]
+    images, _ = spatial_images(r, dry.astype(np.float32))
     gains = np.array([10 ** (s.gain_db / 20) for s in scene.record.sources])
     parts = images.astype(np.float64) * gains[:, None, None]
     np.testing.assert_allclose(parts.sum(axis=0), scene.audio, atol=2e-4 * np.abs(scene.audio).max())
@@ -161,3 +164,51 @@ def test_wordings_are_varied_and_fill_in():
     two = composite_wordings("loudest", "A dog barks.", 2, {})
     assert two[0] == "A dog barks: the louder one" and 'fit "a dog barks"' in two[1] and "two" in two[1]
     assert "loudest one of the three" in composite_wordings("loudest", "A dog barks", 3, {})[2]
+
+
+@pytest.mark.slow
+def test_cli_generates_true_queries_and_tools_break_results_down(demo_corpus, tmp_path, capsys):
+    """`tsel generate --preset demo --set scene.query=...`: every query true (from the
+    rendered audio and labels), `tsel stats` shows the mix, `tsel eval` rows per type,
+    `tsel inspect` the evidence."""
+    import json
+
+    from tsel_data.cli import main
+    from tsel_data.evaluate import write_predictions
+    from tsel_data.store.reader import open_dataset
+
+    out = str(tmp_path / "out")
+    sets = FAST + ['scene.query=["choose", ["caption", "relational", "composite"]]', "scene.same_kind_distractors=0.2",
+                   'scene.onset=["uniform", 0.0, 1.0]', "output.shard_size=6"]
+    args = ["generate", "--preset", "demo", "--corpus-dir", demo_corpus, "--out", out, "--split", "train=12",
+            "--split", "val=0", "--split", "test=0", "--workers", "1", "--quiet"]
+    for s in sets:
+        args += ["--set", s]
+    with pytest.raises(SystemExit) as e:
+        main(args)
+    assert e.value.code == 0
+    cfg = load_config(preset="demo", corpus_dir=demo_corpus, overrides=sets,
+                      splits={"train": 12, "val": 0, "test": 0})
+    source = SceneSource(cfg, "train", home=out)  # for the recipes the stems are rebuilt from
+    with open_dataset(out, "train") as ds:
+        for i in range(len(ds)):
+            assert_relation_holds(source, i, ds[i], cfg)
+        scenes = list(ds.iter_labels())
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["stats", out, "--json"])
+    mix = json.loads(capsys.readouterr().out)["train"]["queries"]
+    assert sum(mix["types"].values()) == 12 and set(mix["types"]) == {s.query_type for s in scenes}
+    pred = str(tmp_path / "pred.jsonl")
+    write_predictions(pred, [{"scene_id": s.scene_id, "azimuth": float(np.nanmean(s.azimuth[0]))} for s in scenes])
+    with pytest.raises(SystemExit):
+        main(["eval", out, "--pred", pred, "--split", "train"])
+    text = capsys.readouterr().out
+    for t in {s.query_type for s in scenes}:
+        assert f"query={t}" in text
+    assert "pairing=" in text
+    shown = next(s for s in scenes if s.query_relation)
+    with pytest.raises(SystemExit):
+        main(["inspect", out, shown.scene_id])
+    text = capsys.readouterr().out
+    assert f"query type: {shown.query_type}" in text and f"relation: {shown.query_relation}" in text

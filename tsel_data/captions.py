@@ -198,36 +198,54 @@ class CaptionIndex:
         return float(self.clip_sims(cap, np.array([clip]))[0])
 
     # --- drawing within a band -----------------------------------------------------------
+    def _needed_terms(self, cap: int, lo: float) -> np.ndarray:
+        """Query terms of which a caption with similarity >= ``lo`` must share at least one
+        (prefix filtering): terms whose weight cannot reach ``lo`` on their own together
+        are dropped. TF-IDF: cos <= sqrt(sum of the shared terms' squared query weights),
+        so the lightest terms whose squares sum below lo² are dropped. Jaccard: a caption
+        sharing m of the query's n terms has J <= m / n, so it shares at least ceil(lo·n)
+        of them; the ceil(lo·n) - 1 most common terms are dropped."""
+        row = self.ids[cap]
+        terms = row[row < self.vocab_size].astype(np.int64)
+        if self.measure == "tfidf":
+            w = self.weights[cap][: len(terms)]
+            order = np.argsort(w, kind="stable")
+            drop = int(np.searchsorted(np.cumsum(w[order] ** 2), lo * lo - 1e-12, side="left"))
+            return np.sort(terms[order[drop:]])
+        lens = self.ptr[terms + 1] - self.ptr[terms]
+        drop = max(int(np.ceil(lo * len(terms) - 1e-9)) - 1, 0)
+        return np.sort(terms[np.argsort(lens, kind="stable")[: len(terms) - drop]])
+
     def sample(self, rng: np.random.Generator, cap: int, lo: float, hi: float, allowed, batch: int = 256,
-               tries: int = 4) -> int | None:
+               tries: int = 3) -> int | None:
         """A clip whose similarity to caption ``cap`` lies in [lo, hi] and that
         ``allowed(clips) -> bool mask`` accepts, drawn from ``rng``; None if the split has none.
 
-        Candidates come in vectorised batches: for a lexical measure with ``lo > 0`` only
-        captions sharing a term with ``cap`` can qualify, so candidates are drawn from the
-        inverted index, uniformly over the captions holding any of its terms (a caption
-        holding m of them is kept with probability 1/m); otherwise uniformly over clips.
-        The first qualifying candidate of a batch is taken. After ``tries`` batches
-        without one, every clip is scored and one of the qualifying clips is drawn
-        uniformly, so a rare band is found when it exists and absence is certain.
+        Candidates come in vectorised batches. For a lexical measure with ``lo > 0`` only
+        captions sharing one of :meth:`_needed_terms` can qualify, so candidates are drawn
+        from the inverted index, uniformly over the captions holding any of those terms (a
+        caption holding m of them is kept with probability 1/m); otherwise uniformly over
+        clips. The first qualifying candidate of a batch is taken. After ``tries`` batches
+        without one, every possible candidate is scored and one of the qualifying clips is
+        drawn uniformly, so a rare band is found when it exists and absence is certain.
         """
         q = self._query(cap)
         lexical = self.measure != "embeddings" and lo > 0
         if lexical:
-            terms = self.ids[cap][self.ids[cap] < self.vocab_size].astype(np.int64)
-            if not len(terms):
-                return None
+            terms = self._needed_terms(cap, lo)
             lens = self.ptr[terms + 1] - self.ptr[terms]
             cum = np.cumsum(lens)
-            total = int(cum[-1])
+            total = int(cum[-1]) if len(cum) else 0
             if total == 0:
                 return None
             offset = self.ptr[terms] - (cum - lens)
+            needed = np.zeros(self.vocab_size + 1, dtype=bool)
+            needed[terms] = True
         for _ in range(tries):
             if lexical:
                 u = rng.integers(total, size=batch)
                 caps = self.post[offset[np.searchsorted(cum, u, side="right")] + u]
-                shared = (q[self.ids[caps]] > 0).sum(axis=1)
+                shared = needed[self.ids[caps]].sum(axis=1)
                 clips = self.clip_of[caps][rng.random(batch) * shared < 1.0]
             else:
                 clips = rng.integers(self.n_clips, size=batch)
@@ -239,7 +257,10 @@ class CaptionIndex:
                 ok = ok[allowed(clips[ok])]
                 if len(ok):
                     return int(clips[ok[0]])
-        every = np.arange(self.n_clips)
+        if lexical:  # every caption holding a needed term, once
+            every = np.unique(self.clip_of[np.concatenate([self.post[self.ptr[t]:self.ptr[t + 1]] for t in terms])])
+        else:
+            every = np.arange(self.n_clips)
         s = self.clip_sims(cap, every, q)
         ok = every[(s >= lo) & (s <= hi)]
         ok = ok[allowed(ok)] if len(ok) else ok

@@ -218,10 +218,10 @@ class _QueryDraws:
     def pick(self, rng, chosen: list[int], same_kind: bool) -> int:
         sc, ix, cat = self.sc, self.ix, self.cat
         taken = cat.source_ids[chosen]
-        chosen_arr = np.asarray(chosen)
 
         def allowed(clips):
-            return ~np.isin(clips, chosen_arr) & ~np.isin(cat.source_ids[clips], taken)
+            # a clip of a recording already in the scene (the chosen clips among them) is not another source
+            return (cat.source_ids[clips][:, None] != taken[None, :]).all(axis=1)
 
         if same_kind:
             j = ix.sample(rng, self.cap, sc.same_kind_similarity, np.inf, allowed)

@@ -4,7 +4,8 @@ Per split: scene count, scenarios, moving fraction, clip use and reuse, a 10° h
 of target azimuths (one value per scene: the circular mean over its active frames),
 angular separation between the target and the nearest other directional source,
 source distances, room sizes, RT60 requested and measured, levels (target level, TIR,
-peak), the target's active share of frames, and query length in words.
+peak), the target's active share of frames, query length in words, and the mix of
+query types, relations and pairings (:func:`query_mix`).
 """
 from __future__ import annotations
 
@@ -108,8 +109,36 @@ def split_stats(root: str, split: str) -> dict:
                       "peak_dbfs": _summ([20 * np.log10(p) for p in raw["peak"] if p])},
         "target_active_fraction": _summ(raw["target_active"]),
         "query_words": _summ(raw["query_words"]),
+        "queries": query_mix(sc.record for sc in scenes),
         "raw": raw,
     }
+
+
+def query_mix(records) -> dict:
+    """Counts of query types, relations (``type:relation``), pairings, and of scenes whose
+    query fell back from the type drawn (``wanted->got``; docs/queries.md)."""
+    types, relations, pairings, fallbacks = Counter(), Counter(), Counter(), Counter()
+    for rec in records:
+        types[rec.query_type] += 1
+        pairings[rec.pairing] += 1
+        if rec.query_relation:
+            relations[f"{rec.query_type}:{rec.query_relation}"] += 1
+        if rec.query_wanted and rec.query_wanted != rec.query_type:
+            fallbacks[f"{rec.query_wanted}->{rec.query_type}"] += 1
+    return {"types": dict(types), "relations": dict(sorted(relations.items())), "pairing": dict(pairings),
+            "fallbacks": dict(sorted(fallbacks.items()))}
+
+
+def _query_lines(q: dict) -> list[str]:
+    def counts(d):
+        return ", ".join(f"{k} {v}" for k, v in sorted(d.items())) or "none"
+
+    lines = [f"  queries: {counts(q['types'])}   pairing: {counts(q['pairing'])}"]
+    if q["relations"]:
+        lines.append(f"  relations: {counts(q['relations'])}")
+    if q["fallbacks"]:
+        lines.append(f"  fell back (drawn->used): {counts(q['fallbacks'])}")
+    return lines
 
 
 def dataset_stats(root: str, splits=None) -> dict:
@@ -160,6 +189,7 @@ def format_text(stats: dict) -> str:
         out.append(_line("peak (dBFS)", s["levels_db"]["peak_dbfs"], fmt=".1f"))
         out.append(_line("target active fraction", s["target_active_fraction"]))
         out.append(_line("query length (words)", s["query_words"], fmt=".0f"))
+        out += _query_lines(s["queries"])
     return "\n".join(out)
 
 
