@@ -93,6 +93,19 @@ def test_default_settings_plan_what_they_always_planned(small_config):
         assert replace(b, query_plan=None) == a
 
 
+def test_query_plans_are_the_same_for_any_worker_count(small_config):
+    from tsel_data.plan import plan_split_json
+
+    cfg = small_config('scene.similarity="tfidf"', 'scene.pairing="hard"', "scene.same_kind_distractors=0.3",
+                       'scene.query=["choose", ["caption", "relational", "composite"]]',
+                       'scene.onset=["uniform", 0.0, 1.0]', splits={"train": 20})
+    view = CatalogView(build_catalog(cfg, cfg.corpus.dir).clips["train"])
+    one = plan_split_json(cfg, "train", view, workers=1)
+    assert plan_split_json(cfg, "train", view, workers=2, chunk=6) == one
+    assert [r.to_json() for r in plan_recipes(cfg, "train", view)] == one
+    assert len({json.loads(line)["query_plan"]["wanted"] for line in one}) == 3
+
+
 def test_hard_and_easy_pairing_and_same_kind_distractors_keep_their_bands(small_config):
     for pairing in ("hard", "easy"):
         cfg = small_config(f'scene.pairing="{pairing}"', 'scene.similarity="tfidf"', "scene.same_kind_distractors=0.3",
@@ -146,6 +159,8 @@ def test_shards_and_records_carry_the_query_fields_and_the_reader_exposes_them(e
             assert s.query == rec.query and s.query in rec.query_pool()
             if rec.query_relation:
                 assert margins[i] == pytest.approx(rec.query_evidence["value"], abs=1e-3)
+                # the torch adapter's query="any" never swaps a relation for a (maybe ambiguous) caption
+                assert not set(rec.query_pool()) & set(rec.sources[0].captions) and len(rec.query_pool()) >= 3
             else:
                 assert np.isnan(margins[i]) and rec.query in rec.sources[0].captions
             assert all(src.pairing for src in rec.sources) and rec.sources[0].pairing == "target"
