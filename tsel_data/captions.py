@@ -109,9 +109,12 @@ class CaptionIndex:
         ``words``, ``tfidf`` or ``embeddings``.
     vectors : dict, optional
         caption -> unit vector (``embeddings``; :func:`load_embeddings`).
+    where : str
+        Names the vectors' file in messages.
     """
 
-    def __init__(self, captions, measure: str = "words", vectors: dict | None = None):
+    def __init__(self, captions, measure: str = "words", vectors: dict | None = None,
+                 where: str = "corpus.caption_embeddings"):
         if measure not in MEASURES:
             raise ValueError(f"unknown caption similarity {measure!r}; expected one of {MEASURES}")
         self.measure = measure
@@ -124,7 +127,7 @@ class CaptionIndex:
         if measure == "embeddings":
             missing = [c for c in flat if c not in (vectors or {})]
             if missing:
-                raise ConfigError(f"corpus.caption_embeddings lacks vectors for {len(missing)} of {len(flat)} captions "
+                raise ConfigError(f"{where} lacks vectors for {len(missing)} of {len(flat)} captions "
                                   f"(first: {missing[0][:60]!r}); make the file from this corpus with "
                                   f"`tsel corpus embed`")
             self.vectors = np.stack([vectors[c] for c in flat]).astype(np.float32) if flat else np.zeros((0, 1))

@@ -50,7 +50,8 @@ class CatalogView:
         key = (measure, embeddings)
         if key not in self._indexes:
             vectors = load_embeddings(embeddings) if measure == SimilarityMeasure.EMBEDDINGS else None
-            self._indexes[key] = CaptionIndex([c.captions for c in self.clips], measure, vectors)
+            self._indexes[key] = CaptionIndex([c.captions for c in self.clips], measure, vectors,
+                                              where=f"corpus.caption_embeddings {embeddings}")
         return self._indexes[key]
 
     @property
