@@ -116,7 +116,8 @@ def _source(demo_corpus, tmp_path, *overrides, n=8):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("relation, extra", [
-    ("loudest", []), ("quietest", []), ("nearest", ['scene.scenario="two-directional"']),
+    ("loudest", []), ("quietest", []),
+    ("loudest", ["scene.interferers=3", 'scene.tir_db=["uniform", 3.5, 8.0]', 'scene.scenario="two-directional"']), ("nearest", ['scene.scenario="two-directional"']),
     ("farthest", ['scene.scenario="two-directional"']),
     ("starts_first", ['scene.onset=["uniform", 0.0, 1.5]']), ("starts_last", ['scene.onset=["uniform", 0.0, 1.5]']),
     ("moving", ['scene.motion="mixed"', "scene.moving_fraction=0.5", 'scene.speed=40.0']),
@@ -179,6 +180,7 @@ def test_cli_generates_true_queries_and_tools_break_results_down(demo_corpus, tm
 
     out = str(tmp_path / "out")
     sets = FAST + ['scene.query=["choose", ["caption", "relational", "composite"]]', "scene.same_kind_distractors=0.2",
+                   'scene.interferers=["choose", [1, 2]]',
                    'scene.onset=["uniform", 0.0, 1.0]', "output.shard_size=6"]
     args = ["generate", "--preset", "demo", "--corpus-dir", demo_corpus, "--out", out, "--split", "train=12",
             "--split", "val=0", "--split", "test=0", "--workers", "1", "--quiet"]
@@ -194,6 +196,7 @@ def test_cli_generates_true_queries_and_tools_break_results_down(demo_corpus, tm
         for i in range(len(ds)):
             assert_relation_holds(source, i, ds[i], cfg)
         scenes = list(ds.iter_labels())
+    assert {s.n_sources for s in scenes} == {2, 3}  # shards pad S; the reader trims it
     capsys.readouterr()
     with pytest.raises(SystemExit):
         main(["stats", out, "--json"])
