@@ -6,6 +6,7 @@ own torch. Each item is a dict: ``audio`` float32 [C, T], ``azimuth``/``elevatio
 ``distance`` float32 [S, F], ``active`` bool [S, F], ``class_index`` int64 [F] (target,
 -1 where it has no position), ``gaussian`` float32 [F, 360] (target, σ = ``sigma``),
 ``accdoa`` float32 [S, F, 3], ``mic_positions`` float32 [C, 3], plus ``query``,
+``query_type``, ``query_relation`` (None for a caption), ``pairing`` (docs/queries.md),
 ``scene_id`` and (``with_record=True``) ``record``.
 
 HDF5 files and clips are opened lazily in each worker (see :mod:`tsel_data.store.reader`
@@ -99,6 +100,9 @@ class Dataset(torch.utils.data.Dataset):
             "accdoa": torch.from_numpy(enc["accdoa"]),
             "mic_positions": torch.from_numpy(s.mic_positions),
             "query": self._query(s, epoch, i),
+            "query_type": s.query_type,
+            "query_relation": s.query_relation,
+            "pairing": s.pairing,
             "scene_id": s.scene_id,
         }
         if self.with_record:
