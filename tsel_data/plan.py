@@ -117,6 +117,12 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     to the query (``scene.caption_similarity``), TIRs, then the room, array and source
     placement (simulated rooms) or the bank room and each source's walk.
 
+    With extended queries (:func:`extended_queries`; docs/queries.md) interferers are
+    paired by ``scene.pairing`` and may be same-kind distractors, and the recipe gets a
+    :class:`~tsel_data.recipe.QueryPlan` from which the renderer decides the query;
+    the query's own draws and the sources' starts (``scene.onset``) come from separate
+    streams of the same scene.
+
     Parameters
     ----------
     cfg : Config
