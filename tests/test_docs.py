@@ -32,3 +32,11 @@ def test_config_doc_tables_match_the_schema():
     for name in ("top", "splits", *SECTIONS):
         assert f"<!-- keys:{name} -->" in text, f"docs/config.md has no table for {name}"
     assert "| `rt60` |" in tables()["room"] and "| s |" in tables()["room"]
+
+
+def test_queries_example_runs(capsys):
+    """docs/queries.md's on-the-fly example runs and prints one line per scene."""
+    (code,) = python_blocks(DOCS / "queries.md")
+    exec(compile(code, "queries.md", "exec"), {})
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 4 and any(" relational " in line for line in lines)

@@ -125,6 +125,25 @@ def test_a_second_writer_is_locked_out(cfg, reference, tmp_path):
     assert data_files(out) == data_files(reference)
 
 
+def _other_process_can_lock(root: str, exclusive: bool) -> bool:
+    code = ("import sys; from tsel_data.store.lock import DatasetLock; from tsel_data.store.layout import Layout\n"
+            f"try:\n    DatasetLock(Layout({root!r}), {exclusive}, 'x').__enter__()\n"
+            "except Exception:\n    sys.exit(3)")
+    return subprocess.run([sys.executable, "-c", code]).returncode == 0
+
+
+def test_an_exclusive_holder_reenters_its_lock_and_keeps_others_out_until_it_leaves(tmp_path):
+    layout = Layout(str(tmp_path))
+    with DatasetLock(layout, exclusive=True, what="generate it"):
+        with DatasetLock(layout, exclusive=False, what="render it"):  # a stage of the same run
+            pass
+        # the inner stage left: the folder is still ours
+        assert not _other_process_can_lock(str(tmp_path), exclusive=False)
+        with DatasetLock(layout, exclusive=True, what="finalize it"):
+            assert not _other_process_can_lock(str(tmp_path), exclusive=True)
+    assert _other_process_can_lock(str(tmp_path), exclusive=True)
+
+
 def test_two_concurrent_runs_never_mix_their_shards(cfg, tmp_path):
     out = str(tmp_path / "ds")
     base = ["generate", "--preset", "demo", "--corpus-dir", cfg.corpus.dir, "--out", out, "--quiet",

@@ -116,6 +116,43 @@ class WavSubtype(StrEnum):
     FLOAT = "FLOAT"
 
 
+class QueryType(StrEnum):
+    """``scene.query``: what a scene's query is (docs/queries.md)."""
+
+    CAPTION = "caption"
+    RELATIONAL = "relational"
+    COMPOSITE = "composite"
+
+
+class Relation(StrEnum):
+    """Relations a relational or composite query states, each decided on the rendered scene."""
+
+    LOUDEST = "loudest"
+    QUIETEST = "quietest"
+    NEAREST = "nearest"
+    FARTHEST = "farthest"
+    STARTS_FIRST = "starts_first"
+    STARTS_LAST = "starts_last"
+    MOVING = "moving"
+    HEARD_AT = "heard_at"
+
+
+class Pairing(StrEnum):
+    """``scene.pairing``: how similar an interferer's captions are to the query caption."""
+
+    RANDOM = "random"
+    HARD = "hard"
+    EASY = "easy"
+
+
+class SimilarityMeasure(StrEnum):
+    """``scene.similarity``: the caption similarity of the guard, pairing and same-kind distractors."""
+
+    WORDS = "words"
+    TFIDF = "tfidf"
+    EMBEDDINGS = "embeddings"
+
+
 def values(choices: type[StrEnum]) -> tuple[str, ...]:
     """The plain string values of an enumeration, in declaration order."""
     return tuple(m.value for m in choices)

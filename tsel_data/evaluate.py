@@ -8,6 +8,9 @@ Sound Event Localization"):
 - **moving target**: one unit per *active* frame of the target (all frames if the
   target is never marked active).
 
+Rows are given for the whole split and per scenario, motion, query type, query type
+and relation (``relational:loudest``), and pairing (docs/queries.md).
+
 A group's MAE and accuracies (share of units with e ≤ 5°, 10°, 20°) pool its units.
 For a purely static or purely moving split this is exactly the paper's number; in a
 mixed group each moving scene contributes one unit per active frame.
@@ -65,10 +68,14 @@ class EvalResult:
     by_scenario: dict = field(default_factory=dict)
     by_motion: dict = field(default_factory=dict)
     per_scene: list = field(default_factory=list)
+    by_query: dict = field(default_factory=dict)
+    by_relation: dict = field(default_factory=dict)
+    by_pairing: dict = field(default_factory=dict)
 
     def to_dict(self, per_scene: bool = True) -> dict:
         d = {"split": self.split, "overall": self.overall, "by_scenario": self.by_scenario,
-             "by_motion": self.by_motion}
+             "by_motion": self.by_motion, "by_query": self.by_query, "by_relation": self.by_relation,
+             "by_pairing": self.by_pairing}
         if per_scene:
             d["per_scene"] = self.per_scene
         return d
@@ -83,7 +90,8 @@ class EvalResult:
             return f"{name:<32}{r['scenes']:>7}{r['units']:>8}{r['mae']:>10.2f}{accs}"
 
         lines.append(row("all", self.overall))
-        for title, groups in (("scenario", self.by_scenario), ("motion", self.by_motion)):
+        for title, groups in (("scenario", self.by_scenario), ("motion", self.by_motion), ("query", self.by_query),
+                              ("relation", self.by_relation), ("pairing", self.by_pairing)):
             for name, r in groups.items():
                 lines.append(row(f"{title}={name}", r))
         return "\n".join(lines)
@@ -213,6 +221,7 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
         raise PredictionError(f"{len(missing)} of {len(ids)} scenes of split {split!r} have no prediction, e.g. "
                               f"{missing[0]!r}; the file must predict every scene")
     per_scene, groups_sc, groups_mo, all_err = [], {}, {}, []
+    groups_q, groups_rel, groups_pair = {}, {}, {}
     for scene in scenes:
         moving = scene.target_moving
         err = scene_errors(preds[scene.scene_id], scene.azimuth[0].astype(np.float64), scene.active[0], moving)
@@ -223,8 +232,13 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
         all_err.append(err)
         groups_sc.setdefault(scenario, []).append(err)
         groups_mo.setdefault(motion, []).append(err)
+        groups_q.setdefault(scene.query_type, []).append(err)
+        if scene.query_relation:
+            groups_rel.setdefault(f"{scene.query_type}:{scene.query_relation}", []).append(err)
+        groups_pair.setdefault(scene.pairing, []).append(err)
         per_scene.append({"scene_id": scene.scene_id, "scenario": scenario, "motion": motion,
-                          "unit": "frame" if moving else "clip", "units": int(err.size),
+                          "query_type": scene.query_type, "query_relation": scene.query_relation,
+                          "pairing": scene.pairing, "unit": "frame" if moving else "clip", "units": int(err.size),
                           "error": float(err.mean()) if err.size else float("nan")})
     if not all_err:
         raise DatasetError(f"{root}: split {split!r} has no scenes")
@@ -234,6 +248,9 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
         by_scenario={k: summarise(v) for k, v in sorted(groups_sc.items())},
         by_motion={k: summarise(v) for k, v in sorted(groups_mo.items())},
         per_scene=per_scene,
+        by_query={k: summarise(v) for k, v in sorted(groups_q.items())},
+        by_relation={k: summarise(v) for k, v in sorted(groups_rel.items())},
+        by_pairing={k: summarise(v) for k, v in sorted(groups_pair.items())},
     )
 
 

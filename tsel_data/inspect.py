@@ -63,7 +63,7 @@ def summary(scene: Scene) -> str:
     """A multi-line human-readable description of a scene."""
     rec = scene.record
     lines = [f"scene {scene.scene_id}  (split {scene.split}, index {scene.index}, seed {rec.seed})",
-             f"query: {scene.query!r}"]
+             f"query: {scene.query!r}"] + query_lines(rec)
     lines.append(f"scenario: {rec.scenario}   motion: {rec.motion}   rir: {rec.rir_method}")
     room = rec.room
     dims = f"{' x '.join(f'{d:.2f}' for d in room.dims)} m" if room.dims else "size unknown"
@@ -109,6 +109,24 @@ def summary(scene: Scene) -> str:
         for cap in info.captions:
             lines.append(f"        caption: {cap}")
     return "\n".join(lines)
+
+
+def query_lines(rec) -> list[str]:
+    """The query's type, relation and evidence, and the pairing (docs/queries.md); nothing
+    for records made with the default query settings."""
+    if not rec.extended:
+        return []
+    head = f"query type: {rec.query_type}"
+    if rec.query_wanted != rec.query_type:
+        head += f" (drawn: {rec.query_wanted})"
+    ev = rec.query_evidence
+    if ev:
+        detail = f" {ev['time']:.1f} s" if ev.get("time") is not None else ""
+        head += (f"   relation: {ev['relation']}{detail}, by {ev['value']:g} {ev['unit']} (margin {ev['margin']:g} "
+                 f"{ev['unit']}) against source(s) {', '.join(map(str, ev['against']))}")
+    pair = ", ".join(f"[{k}] {s.pairing}" + (f" {s.caption_similarity:.2f}" if s.caption_similarity is not None
+                                             else "") for k, s in enumerate(rec.sources) if k)
+    return [head, f"pairing: {rec.pairing} (similarity to the query caption: {pair})"]
 
 
 def write_wav(scene: Scene, path: str, subtype: str = "FLOAT") -> str:

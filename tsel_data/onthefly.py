@@ -95,6 +95,11 @@ class SceneSource:
         """The ambiguity guard the scenes are planned with (``scene.caption_similarity``)."""
         return self.cfg.scene.caption_similarity
 
+    @property
+    def similarity(self) -> str:
+        """The caption similarity the scenes are planned with (``scene.similarity``)."""
+        return str(self.cfg.scene.similarity)
+
     def set_epoch(self, epoch: int) -> None:
         """Draw scenes of epoch ``epoch`` from now on (0: the dataset's own scenes)."""
         self._epoch_cfg = replace(self.cfg, seed=epoch_seed(self.cfg.seed, epoch))
@@ -120,10 +125,11 @@ class SceneSource:
         """Scene ``i`` rendered now, as the offline reader returns it."""
         r = self.recipe(i, epoch)
         s = render_scene(r)
+        rec = s.record
         return Scene(scene_id=s.scene_id, split=self.split, index=r.index, query=s.query, audio=s.audio,
                      azimuth=s.azimuth, elevation=s.elevation, distance=s.distance, active=s.active,
                      mic_positions=s.mic_positions, fs=r.fs, label_hop=r.label_hop, format=r.array.format,
-                     record=s.record)
+                     record=rec, query_type=rec.query_type, query_relation=rec.query_relation, pairing=rec.pairing)
 
     def __getitem__(self, i: int) -> Scene:
         return self.get(int(i))

@@ -471,14 +471,21 @@ def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, 
         absent), ``plan_seconds``, ``render_seconds``, ``bytes`` (on disk).
     """
     t0 = time.perf_counter()
-    # clip-check bars only on a terminal: a log file would get thousands of bar updates
-    plan_dataset(cfg, out_dir, workers=workers, resume=resume, grow=grow, force=force,
-                 progress=None if progress else False, report=report)
-    t1 = time.perf_counter()
-    rendered = render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
-    t2 = time.perf_counter()
-    doc = finalize(out_dir)
     layout = Layout(out_dir)
+    check_ownership(layout, force)
+    try:
+        os.makedirs(layout.plan_dir, exist_ok=True)
+    except OSError as e:
+        raise write_error(out_dir, e, out_dir) from None
+    # one lock from planning to finalizing: a second run cannot slip in between the stages
+    with DatasetLock(layout, exclusive=True, what="generate it"):
+        # clip-check bars only on a terminal: a log file would get thousands of bar updates
+        plan_dataset(cfg, out_dir, workers=workers, resume=resume, grow=grow, force=force,
+                     progress=None if progress else False, report=report)
+        t1 = time.perf_counter()
+        rendered = render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
+        t2 = time.perf_counter()
+        doc = finalize(out_dir)
     plan = read_plan_doc(layout)
     return {"out": out_dir, "splits": {s: v["scenes"] for s, v in doc["splits"].items()},
             "rendered_now": rendered, "bad_clips": plan.get("bad_clips", 0),

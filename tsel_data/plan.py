@@ -18,14 +18,14 @@ import numpy as np
 
 from .banks.paths import sample_bank_path, sample_bank_point
 from .banks.scenes import BankRequest, open_bank_cached, resolve_bank, split_rooms
-from .captions import max_similarity, tokens
+from .captions import CaptionIndex, load_embeddings, max_similarity, tokens
 from .catalog import MIN_CLIPS, CatalogScan, build_catalog, resolve_corpus_dir
-from .choices import Motion, Role, Scenario, Spatial
+from .choices import Motion, Pairing, QueryType, Relation, Role, Scenario, SimilarityMeasure, Spatial
 from .clip import Clip
 from .config import Config, rooms_without_bank
 from .errors import GeometryError, TselError
 from .geometry import ArrayPose, Room, frame_centres, interpolate_positions, wrap_azimuth
-from .recipe import BankRef, BankWalk, SceneRecipe, Source
+from .recipe import BankRef, BankWalk, QueryPlan, SceneRecipe, Source
 from .store.layout import Layout
 
 MAX_TRIES = 200
@@ -43,6 +43,25 @@ class CatalogView:
         # clips cut from the same recording (AudioCaps: same YouTube video) are one sound source
         self.source_key = [c.meta.get("youtube_id") or c.audio for c in clips]
         self.bank_path = bank_path
+        self._indexes: dict = {}
+
+    def caption_index(self, measure: str, embeddings: str = "") -> CaptionIndex:
+        """The split's captions under ``measure``, built once per view (a few seconds for
+        50k captions; :func:`prepare_views` builds the config's before workers start)."""
+        key = (measure, embeddings)
+        if key not in self._indexes:
+            vectors = load_embeddings(embeddings) if measure == SimilarityMeasure.EMBEDDINGS else None
+            self._indexes[key] = CaptionIndex([c.captions for c in self.clips], measure, vectors,
+                                              where=f"corpus.caption_embeddings {embeddings}")
+        return self._indexes[key]
+
+    @property
+    def source_ids(self) -> np.ndarray:
+        """Each clip's sound source as an integer (clips of one recording share it)."""
+        if "_source_ids" not in self.__dict__:
+            ids: dict = {}
+            self._source_ids = np.array([ids.setdefault(k, len(ids)) for k in self.source_key], dtype=np.int64)
+        return self._source_ids
 
 
 def prepare_views(cfg: Config, home: Layout, workers: int = 1,
@@ -60,7 +79,12 @@ def prepare_views(cfg: Config, home: Layout, workers: int = 1,
         raise problem
     catalog = build_catalog(cfg, resolve_corpus_dir(cfg, home.demo_corpus), workers=workers, progress=progress)
     bank_path = resolve_bank(bank_request(cfg), home.demo_bank)
-    return catalog, {split: CatalogView(clips, bank_path) for split, clips in catalog.clips.items()}
+    views = {split: CatalogView(clips, bank_path) for split, clips in catalog.clips.items()}
+    if extended_queries(cfg):
+        for split in cfg.active_splits():
+            if split in views:
+                views[split].caption_index(cfg.scene.similarity, cfg.corpus.caption_embeddings)
+    return catalog, views
 
 
 def bank_request(cfg: Config) -> BankRequest:
@@ -68,9 +92,24 @@ def bank_request(cfg: Config) -> BankRequest:
     return BankRequest(cfg.room.bank, cfg.scene.format, cfg.audio.fs, cfg.rooms_by_split(), cfg.active_splits())
 
 
-def scene_rng(seed: int, split: str, index: int) -> np.random.Generator:
-    """The generator of every draw of scene ``index`` of ``split``."""
-    return np.random.default_rng([seed, zlib.crc32(split.encode("utf-8")), index])
+def scene_rng(seed: int, split: str, index: int, stream: int = 0) -> np.random.Generator:
+    """The generator of every draw of scene ``index`` of ``split``.
+
+    Streams 1 (query decisions: the query type, same-kind draws, the relation order and
+    wording) and 2 (each source's start, ``scene.onset``) are independent generators of
+    the same scene, so they never shift the draws of stream 0 (clips, levels, room,
+    placement) that earlier releases made.
+    """
+    key = [seed, zlib.crc32(split.encode("utf-8")), index]
+    return np.random.default_rng(key if stream == 0 else key + [stream])
+
+
+def extended_queries(cfg: Config) -> bool:
+    """Whether the config uses queries beyond today's (a caption, random pairing, word
+    similarity): then recipes carry a QueryPlan and records the query fields."""
+    sc = cfg.scene
+    return (set(sc.query.options) != {QueryType.CAPTION} or sc.pairing != Pairing.RANDOM
+            or sc.same_kind_distractors > 0 or sc.similarity != SimilarityMeasure.WORDS)
 
 
 def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRecipe:
@@ -80,6 +119,12 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     and the caption used as the query, interferers whose captions are not too similar
     to the query (``scene.caption_similarity``), TIRs, then the room, array and source
     placement (simulated rooms) or the bank room and each source's walk.
+
+    With extended queries (:func:`extended_queries`; docs/queries.md) interferers are
+    paired by ``scene.pairing`` and may be same-kind distractors, and the recipe gets a
+    :class:`~tsel_data.recipe.QueryPlan` from which the renderer decides the query;
+    the query's own draws and the sources' starts (``scene.onset``) come from separate
+    streams of the same scene.
 
     Parameters
     ----------
@@ -111,25 +156,34 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     q = int(rng.integers(len(cat.clips[t].captions)))
     query = cat.clips[t].captions[q]
     chosen = [t]
-    for _ in range(n_int):
-        chosen.append(_pick_interferer(rng, cat, chosen, cat.tokens[t][q], sc.caption_similarity, split, index))
+    pairs = None
+    if extended_queries(cfg):
+        pairs = _QueryDraws(cfg, split, index, cat, t, q)
+        for k in range(n_int):
+            chosen.append(pairs.pick(rng, chosen, same_kind=pairs.wants_same_kind(k, n_int)))
+    else:
+        for _ in range(n_int):
+            chosen.append(_pick_interferer(rng, cat, chosen, cat.tokens[t][q], sc.caption_similarity, split, index))
 
     additive = Spatial.DIFFUSE if sc.additive == "diffuse" else Spatial.ADDITIVE
     spatial = [Spatial.DIRECTIONAL] + [
         additive if (scenario == Scenario.DIRECTIONAL_ADDITIVE and k == 0) else Spatial.DIRECTIONAL
         for k in range(n_int)]
     tir = [None] + [float(sc.tir_db.sample(rng)) for _ in range(n_int)]
+    if pairs is not None:
+        tir = pairs.separate_levels(tir)
     if cat.bank_path:
         room, array, places, bank = _place_bank(cfg, rng, spatial, split, index, cat.bank_path)
     else:
         (room, array, places), bank = _place(cfg, rng, spatial, split, index), None
+    starts = _starts(cfg, split, index, len(chosen))
     sources = []
     for k, ci in enumerate(chosen):
         clip = cat.clips[ci]
         sources.append(Source(
             role=Role.TARGET if k == 0 else Role.INTERFERER, clip_id=clip.id, audio=clip.audio,
             captions=clip.captions, spatial=spatial[k], offset=clip.offset,
-            tir_db=None if tir[k] is None else round(tir[k], 4), **(places[k] or {}),
+            tir_db=None if tir[k] is None else round(tir[k], 4), start=starts[k], **(places[k] or {}),
         ))
     a = cfg.audio
     recipe = SceneRecipe(
@@ -138,8 +192,111 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
         fs=a.fs, duration=a.duration, label_hop=a.label_hop,
         rir_method="bank" if cat.bank_path else cfg.room.rir_method,
         target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db, bank=bank,
+        query_plan=None if pairs is None else pairs.plan(chosen),
     )
     return recipe.validate(wall_margin=cfg.sources.wall_margin - 1e-6)
+
+
+# Same-kind distractors get |TIR| >= margin_level + this, so the loudness relation holds
+# on the rendered levels with room to spare (they follow the recipe's TIR to ~1e-6 dB).
+LEVEL_SLACK_DB = 0.5
+
+
+class _QueryDraws:
+    """The query side of one scene (configs with extended queries): interferers paired
+    by caption similarity, same-kind distractors, their levels, and the QueryPlan.
+
+    Clips are drawn from the scene's main generator, as before; everything else about
+    the query from its second stream (:func:`scene_rng` stream 1).
+    """
+
+    def __init__(self, cfg: Config, split: str, index: int, cat: CatalogView, t: int, q: int):
+        self.cfg, self.sc, self.split, self.index, self.cat = cfg, cfg.scene, split, index, cat
+        self.qrng = scene_rng(cfg.seed, split, index, stream=1)
+        self.wanted = str(self.sc.query.sample(self.qrng))
+        self.ix = cat.caption_index(self.sc.similarity, cfg.corpus.caption_embeddings)
+        self.t, self.cap = t, self.ix.caption_id(t, q)
+        self.pairings: list = [None]
+
+    def wants_same_kind(self, k: int, n_int: int) -> bool:
+        # a composite query needs a second source its caption fits: the last interferer
+        # (directional unless it is a directional+additive scene's only one); any
+        # interferer with probability scene.same_kind_distractors
+        p = self.sc.same_kind_distractors
+        drawn = bool(self.qrng.random() < p) if p > 0 else False
+        return drawn or (self.wanted == QueryType.COMPOSITE and k == n_int - 1)
+
+    def pick(self, rng, chosen: list[int], same_kind: bool) -> int:
+        sc, ix, cat = self.sc, self.ix, self.cat
+        taken = cat.source_ids[chosen]
+
+        def allowed(clips):
+            # a clip of a recording already in the scene (the chosen clips among them) is not another source
+            return (cat.source_ids[clips][:, None] != taken[None, :]).all(axis=1)
+
+        if same_kind:
+            j = ix.sample(rng, self.cap, sc.same_kind_similarity, np.inf, allowed)
+            if j is not None:
+                self.pairings.append("same-kind")
+                return j
+        if sc.pairing != Pairing.RANDOM:
+            lo, hi = ((sc.hard_similarity, sc.caption_similarity) if sc.pairing == Pairing.HARD
+                      else (-np.inf, sc.easy_similarity))
+            j = ix.sample(rng, self.cap, lo, hi, allowed)
+            if j is not None:
+                self.pairings.append(str(sc.pairing))
+                return j
+        # random pairing, and the fallback of a band the split cannot fill
+        for _ in range(MAX_TRIES):
+            j = int(rng.integers(len(cat.clips)))
+            if j in chosen or cat.source_ids[j] in taken or ix.clip_sim(self.cap, j) > sc.caption_similarity:
+                continue
+            self.pairings.append(Pairing.RANDOM.value)
+            return j
+        raise TselError(
+            f"scene {self.split}/{self.index}: no interferer found whose captions differ from the query "
+            f"after {MAX_TRIES} tries; raise scene.caption_similarity (now {sc.caption_similarity}) or add clips")
+
+    def separate_levels(self, tir: list) -> list:
+        """Same-kind distractors all on one side of the target, by at least the level
+        margin plus slack, so "the louder / quieter of the ..." is true when rendered."""
+        same = [k for k, p in enumerate(self.pairings) if p == "same-kind"]
+        if not same:
+            return tir
+        sign = 1.0 if tir[same[0]] >= 0 else -1.0
+        least = self.sc.margin_level + LEVEL_SLACK_DB
+        return [sign * max(abs(v), least) if k in same else v for k, v in enumerate(tir)]
+
+    def plan(self, chosen: list[int]) -> QueryPlan:
+        sc, ix, cat = self.sc, self.ix, self.cat
+        matches = tuple(k for k, p in enumerate(self.pairings) if p == "same-kind")
+        sims = [None] + [round(ix.clip_sim(self.cap, j), 4) for j in chosen[1:]]
+        alternatives = ()
+        if not matches:
+            others = np.asarray(chosen[1:])
+            alternatives = tuple(c for k, c in enumerate(cat.clips[self.t].captions)
+                                 if ix.clip_sims(ix.caption_id(self.t, k), others).max() <= sc.caption_similarity)
+        kinds = set(self.pairings[1:])
+        pairing = "same-kind" if matches else (kinds.pop() if len(kinds) == 1 else "mixed")
+        margins = {Relation.LOUDEST: sc.margin_level, Relation.QUIETEST: sc.margin_level,
+                   Relation.NEAREST: sc.margin_distance, Relation.FARTHEST: sc.margin_distance,
+                   Relation.STARTS_FIRST: sc.margin_onset, Relation.STARTS_LAST: sc.margin_onset,
+                   Relation.MOVING: sc.margin_motion, Relation.HEARD_AT: sc.margin_solo}
+        order = tuple(str(r) for r in self.qrng.permutation(list(sc.relations)))
+        return QueryPlan(wanted=self.wanted, relations=order, matches=matches, alternatives=alternatives,
+                         wording=int(self.qrng.integers(1 << 30)), pairing=pairing,
+                         pairings=tuple(self.pairings), similarity=tuple(sims), measure=str(sc.similarity),
+                         margins=tuple((str(k), float(v)) for k, v in margins.items()))
+
+
+def _starts(cfg: Config, split: str, index: int, n: int) -> list[float]:
+    """Each source's start in the scene (``scene.onset``), from the scene's third stream so
+    that no other draw moves; all 0 (no draws) by default."""
+    onset = cfg.scene.onset
+    if onset.kind == "const" and float(onset.args[0]) == 0.0:
+        return [0.0] * n
+    rng = scene_rng(cfg.seed, split, index, stream=2)
+    return [round(float(onset.sample(rng)), 4) for _ in range(n)]
 
 
 def _pick_interferer(rng, cat: CatalogView, chosen: list[int], query_tokens, max_sim: float, split, index) -> int:

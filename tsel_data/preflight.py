@@ -22,7 +22,7 @@ from .catalog import BUILTIN_DEMO, resolve_corpus_dir, scan_catalog
 from .config import Config, config_problems, geometry_problems, rooms_without_bank
 from .errors import DatasetError, TselError
 from .pipeline import check_ownership, estimate_bytes, plan_differences, planned_with
-from .plan import CatalogView, bank_request, plan_split_json
+from .plan import CatalogView, bank_request, extended_queries, plan_split_json
 from .report import CheckReport
 from .store.layout import Layout
 
@@ -157,7 +157,10 @@ def _check_plan(cfg: Config, catalogs: dict, workers: int, rep: CheckReport, out
             return
     for split, clips in catalogs.items():
         try:
-            lines = plan_split_json(cfg, split, CatalogView(clips, bank_path), workers)
+            view = CatalogView(clips, bank_path)
+            if extended_queries(cfg):  # built once here, not in every planning process
+                view.caption_index(cfg.scene.similarity, cfg.corpus.caption_embeddings)
+            lines = plan_split_json(cfg, split, view, workers)
         except TselError as e:
             rep.error(e)
             continue

@@ -74,7 +74,8 @@ class Source:
     source, knots ``(t s, x, y, z m)`` in the room frame, linearly interpolated in time.
     bank: for bank-rendered sources, where in the bank (:class:`BankWalk`).
     tir_db: target-to-interferer ratio at the array for interferers (dB), None for the
-    target. offset: seconds into the audio file where the clip starts.
+    target. offset: seconds into the audio file where the clip starts. start: seconds
+    into the scene where the clip starts (silence before it; ``scene.onset``).
     """
 
     role: str
@@ -87,19 +88,23 @@ class Source:
     path: tuple[tuple[float, float, float, float], ...] | None = None
     bank: BankWalk | None = None
     tir_db: float | None = None
+    start: float = 0.0
 
     @property
     def moving(self) -> bool:
         return bool(self.path) or bool(self.bank and self.bank.moving)
 
     def to_dict(self) -> dict:
-        return {
+        d = {
             "role": self.role, "clip_id": self.clip_id, "audio": self.audio, "captions": list(self.captions),
             "spatial": self.spatial, "offset": self.offset,
             "position": None if self.position is None else list(self.position),
             "path": None if not self.path else [list(k) for k in self.path],
             "bank": None if self.bank is None else self.bank.to_dict(), "tir_db": self.tir_db,
         }
+        if self.start:  # absent when 0: recipes without scene.onset keep their bytes
+            d["start"] = self.start
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "Source":
@@ -131,6 +136,51 @@ class Source:
 
 
 @dataclass(frozen=True)
+class QueryPlan:
+    """What the renderer needs to decide a scene's query on the rendered truth
+    (docs/queries.md). Only recipes planned with non-default query settings carry one.
+
+    wanted: the query type drawn (``caption``, ``relational``, ``composite``).
+    relations: the relations to try, in the order drawn for this scene.
+    matches: sources besides the target that the query caption also describes (the
+    same-kind distractors); a composite query's relation is decided among these.
+    alternatives: the target's captions that describe it and no other source (empty
+    when a same-kind distractor is present: then no bare caption is unambiguous).
+    wording: picks the template of a relation's wordings. pairing: the scene's pairing
+    (``random``, ``hard``, ``easy``, ``same-kind`` or ``mixed``). pairings, similarity:
+    per source (None for the target): how it was paired, and the similarity of its
+    captions to the query caption under ``measure``. margins: relation name -> the
+    margin it must hold with (dB, m, s, deg; ``heard_at``: the solo window, s).
+    """
+
+    wanted: str
+    relations: tuple[str, ...]
+    matches: tuple[int, ...]
+    alternatives: tuple[str, ...]
+    wording: int
+    pairing: str
+    pairings: tuple[str | None, ...]
+    similarity: tuple[float | None, ...]
+    measure: str
+    margins: tuple[tuple[str, float], ...]
+
+    def margin(self, relation: str) -> float:
+        return dict(self.margins)[relation]
+
+    def to_dict(self) -> dict:
+        return {"wanted": self.wanted, "relations": list(self.relations), "matches": list(self.matches),
+                "alternatives": list(self.alternatives), "wording": self.wording, "pairing": self.pairing,
+                "pairings": list(self.pairings), "similarity": list(self.similarity), "measure": self.measure,
+                "margins": dict(self.margins)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "QueryPlan":
+        return cls(d["wanted"], tuple(d["relations"]), tuple(int(k) for k in d["matches"]), tuple(d["alternatives"]),
+                   int(d["wording"]), d["pairing"], tuple(d["pairings"]), tuple(d["similarity"]), d["measure"],
+                   tuple((k, float(v)) for k, v in d["margins"].items()))
+
+
+@dataclass(frozen=True)
 class SceneRecipe:
     """Everything needed to render one scene (the target is ``sources[0]``).
 
@@ -138,7 +188,9 @@ class SceneRecipe:
     target_level_dbfs: active-frame RMS of the target's image at the array.
     activity_threshold_db: a frame is active within this of the clip's loudest frame.
     room: the simulated shoebox (None for bank scenes). bank: the bank and room of a
-    bank scene (None for simulated scenes).
+    bank scene (None for simulated scenes). query: the target's caption drawn as the
+    query; with a ``query_plan`` the renderer decides the scene's query from it and the
+    rendered truth (a relation, or this caption).
     """
 
     scene_id: str
@@ -157,6 +209,7 @@ class SceneRecipe:
     target_level_dbfs: float = -25.0
     activity_threshold_db: float = -30.0
     bank: BankRef | None = None
+    query_plan: QueryPlan | None = None
 
     @property
     def target(self) -> Source:
@@ -179,7 +232,7 @@ class SceneRecipe:
         # hand-written rather than dataclasses.asdict: planning 100k scenes is dominated
         # by serialisation otherwise. The bank reference is stored as "extra" (format 1).
         a = self.array
-        return {
+        d = {
             "scene_id": self.scene_id, "split": self.split, "index": self.index, "seed": self.seed,
             "scenario": self.scenario, "query": self.query,
             "array": {"format": a.format, "centre": list(a.centre), "yaw": a.yaw, "side": a.side},
@@ -189,6 +242,9 @@ class SceneRecipe:
             "target_level_dbfs": self.target_level_dbfs, "activity_threshold_db": self.activity_threshold_db,
             "extra": {} if self.bank is None else {"bank": self.bank.path, "bank_room": self.bank.room},
         }
+        if self.query_plan is not None:  # absent in recipes of default query settings: their bytes stay
+            d["query_plan"] = self.query_plan.to_dict()
+        return d
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), ensure_ascii=False, separators=(",", ":"))
@@ -201,6 +257,8 @@ class SceneRecipe:
         d["room"] = None if d.get("room") is None else Room(tuple(d["room"]["dims"]), d["room"]["rt60"])
         d["sources"] = tuple(Source.from_dict(s) for s in d["sources"])
         d["bank"] = BankRef(extra["bank"], extra["bank_room"]) if extra.get("bank") else None
+        qp = d.pop("query_plan", None)
+        d["query_plan"] = None if qp is None else QueryPlan.from_dict(qp)
         return cls(**d)
 
     @classmethod

@@ -25,6 +25,7 @@ from .banks.scenes import open_bank_cached
 from .choices import Spatial
 from .errors import AudioError, BankError
 from .geometry import CHANNEL_NAMES, cart_to_sph, frame_centres
+from .queries import Truth, decide
 from .recipe import SceneRecipe, array_frame_position_at
 from .store.records import (LABEL_DECIMALS, ArrayRecord, LevelsRecord, RoomRecord, SceneRecord, SourceRecord,
                             label_list)
@@ -146,7 +147,8 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
     docstring): every step of :func:`render_scene` but the labels and the record."""
     fs, hop, nf = recipe.fs, recipe.label_hop, recipe.n_frames
     fmt = recipe.array.format
-    dry = np.stack([load_clip_cached(s.audio, fs, recipe.duration, s.offset) for s in recipe.sources])
+    dry = np.stack([_started(load_clip_cached(s.audio, fs, recipe.duration, s.offset), s.start, fs)
+                    for s in recipe.sources])
     active = np.stack([frame_activity(x, fs, hop, nf, recipe.activity_threshold_db) for x in dry])
 
     images, rt60_measured = spatial_images(recipe, dry)
@@ -206,10 +208,23 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
     dist = np.stack([l[2] for l in labels])
     mics = recipe.array.mics().astype(np.float32)
 
+    query, extra, qinfo = recipe.query, {}, None
+    qp = recipe.query_plan
+    if qp is not None:
+        # decided on what was rendered: image levels in the mix, activity and position labels
+        truth = Truth(np.array([db(levels[k] * gains[k] * norm) for k in range(len(levels))]), active, az, el,
+                      dist, recipe.label_hop)
+        d = decide(qp, recipe.query, truth, recipe.scene_id)
+        query = d.text
+        extra = dict(query_type=str(d.type), query_relation=d.relation, query_evidence=d.evidence,
+                     query_alternatives=list(d.alternatives), pairing=qp.pairing, query_wanted=qp.wanted)
+        margin = d.evidence["value"] if d.evidence else float("nan")
+        qinfo = {"query_type": str(d.type), "query_relation": d.relation or "", "query_margin": margin,
+                 "pairing": qp.pairing}
     room, centre, yaw = _room_and_pose(recipe, rt60_measured)
     record = SceneRecord(
         scene_id=recipe.scene_id, split=recipe.split, index=recipe.index, seed=recipe.seed,
-        scenario=recipe.scenario, query=recipe.query, motion="moving" if recipe.moving else "static",
+        scenario=recipe.scenario, query=query, motion="moving" if recipe.moving else "static",
         rir_method=recipe.rir_method, room=room,
         array=ArrayRecord(fmt, centre, yaw, recipe.array.side, np.round(mics.astype(np.float64), 6).tolist()),
         sources=tuple(
@@ -221,11 +236,23 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
                 elevation=label_list(el[k], LABEL_DECIMALS["elevation"]),
                 distance=label_list(dist[k], LABEL_DECIMALS["distance"]),
                 active=active[k].tolist(), tir_db=s.tir_db, gain_db=round(db(gains[k] * norm), 3),
-                level_dbfs=round(db(levels[k] * gains[k] * norm), 3))
+                level_dbfs=round(db(levels[k] * gains[k] * norm), 3),
+                **({} if qp is None else {"pairing": qp.pairings[k] or "target", "caption_similarity": qp.similarity[k]}))
             for k, s in enumerate(recipe.sources)),
         levels=LevelsRecord(recipe.target_level_dbfs, round(peak * norm, 6), round(db(norm), 3)),
+        **extra,
     )
-    return RenderedScene(recipe.scene_id, recipe.query, mix, az, el, dist, active, mics, record)
+    return RenderedScene(recipe.scene_id, query, mix, az, el, dist, active, mics, record, qinfo)
+
+
+def _started(x: np.ndarray, start: float, fs: int) -> np.ndarray:
+    """The clip as heard from ``start`` seconds into the scene: silence before, cut at the end."""
+    n = int(round(start * fs))
+    if n <= 0:
+        return x
+    out = np.zeros_like(x)
+    out[n:] = x[: max(len(x) - n, 0)]
+    return out
 
 
 def _blame_rirs(recipe: SceneRecipe, k: int) -> None:

@@ -5,8 +5,9 @@ of target azimuths (one value per scene: the circular mean over its active frame
 angular separation between the target and the nearest other directional source,
 source distances, room sizes, RT60 requested and measured, levels (target level, TIR,
 peak), the target's active share of frames and mean elevation, what moves and how fast
-(the median great-circle speed of each moving source along its labels), and query
-length in words. A dataset still being made gives the statistics of its finished shards.
+(the median great-circle speed of each moving source along its labels), query length in
+words, and the mix of query types, relations and pairings (:func:`query_mix`). A dataset
+still being made gives the statistics of its finished shards.
 """
 from __future__ import annotations
 
@@ -119,6 +120,7 @@ def split_stats(root: str, split: str) -> dict:
         "query_words": _summ(raw["query_words"]),
         "moving_sources": {"scenes": dict(Counter(raw["moves"])), "speed_deg_s": _summ(raw["speed"])},
         "target_elevation_deg": _summ(raw["target_el"]),
+        "queries": query_mix(sc.record for sc in scenes),
         "raw": raw,
     }
 
@@ -133,6 +135,31 @@ def angular_speed(az, el, hop: float) -> float | None:
     if not steps.size:
         return None
     return float(np.degrees(np.median(np.arccos(np.clip(steps, -1.0, 1.0)))) / hop)
+def query_mix(records) -> dict:
+    """Counts of query types, relations (``type:relation``), pairings, and of scenes whose
+    query fell back from the type drawn (``wanted->got``; docs/queries.md)."""
+    types, relations, pairings, fallbacks = Counter(), Counter(), Counter(), Counter()
+    for rec in records:
+        types[rec.query_type] += 1
+        pairings[rec.pairing] += 1
+        if rec.query_relation:
+            relations[f"{rec.query_type}:{rec.query_relation}"] += 1
+        if rec.query_wanted and rec.query_wanted != rec.query_type:
+            fallbacks[f"{rec.query_wanted}->{rec.query_type}"] += 1
+    return {"types": dict(types), "relations": dict(sorted(relations.items())), "pairing": dict(pairings),
+            "fallbacks": dict(sorted(fallbacks.items()))}
+
+
+def _query_lines(q: dict) -> list[str]:
+    def counts(d):
+        return ", ".join(f"{k} {v}" for k, v in sorted(d.items())) or "none"
+
+    lines = [f"  queries: {counts(q['types'])}   pairing: {counts(q['pairing'])}"]
+    if q["relations"]:
+        lines.append(f"  relations: {counts(q['relations'])}")
+    if q["fallbacks"]:
+        lines.append(f"  fell back (drawn->used): {counts(q['fallbacks'])}")
+    return lines
 
 
 def dataset_stats(root: str, splits=None) -> dict:
@@ -186,6 +213,7 @@ def format_text(stats: dict) -> str:
         out.append(_line("target elevation (deg)", s["target_elevation_deg"], fmt=".1f"))
         out.append(_line("moving source speed (deg/s)", s["moving_sources"]["speed_deg_s"], fmt=".1f"))
         out.append(_line("query length (words)", s["query_words"], fmt=".0f"))
+        out += _query_lines(s["queries"])
     return "\n".join(out)
 
 

@@ -6,6 +6,7 @@ own torch. Each item is a dict: ``audio`` float32 [C, T], ``azimuth``/``elevatio
 ``distance`` float32 [S, F], ``active`` bool [S, F], ``class_index`` int64 [F] (target,
 -1 where it has no position), ``gaussian`` float32 [F, 360] (target, σ = ``sigma``),
 ``accdoa`` float32 [S, F, 3], ``mic_positions`` float32 [C, 3], plus ``query``,
+``query_type``, ``query_relation`` (None for a caption), ``pairing`` (docs/queries.md),
 ``scene_id`` and (``with_record=True``) ``record``.
 
 HDF5 files and clips are opened lazily in each worker (see :mod:`tsel_data.store.reader`
@@ -25,7 +26,6 @@ except ImportError as e:  # pragma: no cover - exercised only without torch
 
 import numpy as np
 
-from .captions import answerable_queries
 from .executors import prepare_worker
 from .labels import scene_targets
 from .store.reader import open_dataset
@@ -49,9 +49,13 @@ class Dataset(torch.utils.data.Dataset):
     transform : callable, optional
         ``transform(item) -> item``.
     query : str
-        ``"dataset"``: the scene's query as planned; ``"any"``: one of the target's
-        captions, drawn per (seed, epoch, index) among those that pass the dataset's
-        ambiguity guard against every other source's captions (never an ambiguous one).
+        ``"dataset"``: the scene's query as planned; ``"any"``: drawn per (seed, epoch,
+        index) among the scene's queries that are as true and unambiguous as its own:
+        for a caption, the target's captions that pass the dataset's ambiguity guard
+        against every other source's captions; for a relational or composite query, the
+        other wordings of the same relation (never a caption, which a same-kind
+        distractor may make ambiguous). Records of extended queries list these
+        (``query_alternatives``, decided with the dataset's own caption similarity).
     with_record : bool
         Add the scene's :class:`~tsel_data.store.records.SceneRecord` (batch with
         :func:`collate`).
@@ -96,6 +100,9 @@ class Dataset(torch.utils.data.Dataset):
             "accdoa": torch.from_numpy(enc["accdoa"]),
             "mic_positions": torch.from_numpy(s.mic_positions),
             "query": self._query(s, epoch, i),
+            "query_type": s.query_type,
+            "query_relation": s.query_relation,
+            "pairing": s.pairing,
             "scene_id": s.scene_id,
         }
         if self.with_record:
@@ -105,9 +112,7 @@ class Dataset(torch.utils.data.Dataset):
     def _query(self, scene, epoch: int, i: int) -> str:
         if self.query == "dataset" or scene.record is None:
             return scene.query
-        rec = scene.record
-        pool = answerable_queries(rec.sources[0].captions, [s.captions for s in rec.sources[1:]],
-                                  getattr(self.scenes, "caption_similarity", 0.5)) or [scene.query]
+        pool = scene.record.query_pool(getattr(self.scenes, "caption_similarity", 0.5))
         rng = np.random.default_rng([getattr(self.scenes, "seed", 0), epoch, i, 1])
         return pool[int(rng.integers(len(pool)))]
 

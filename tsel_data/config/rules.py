@@ -19,6 +19,7 @@ import re
 from dataclasses import fields
 
 from ..acoustics.metrics import sabine_min_rt60
+from ..choices import Pairing, QueryType, Relation, SimilarityMeasure, values
 from ..distributions import Dist
 from ..errors import ConfigError, GeometryError
 from ..geometry import array_radius
@@ -218,6 +219,7 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
         out.append(ConfigError(f"{at(where, 'scene.min_separation', 'scene.interferers')}: scene.min_separation "
                                f"{cfg.scene.min_separation:g}° is impossible with {k} directional sources: the "
                                f"largest possible is {360 / k:g}° (360° / {k}); lower scene.min_separation"))
+    out += _query_problems(cfg, where)
     if not cfg.room.bank and cfg.scene.format == "foa" and cfg.room.rir_method == "pyroomacoustics":
         out.append(ConfigError(f"{at(where, 'room.rir_method', 'scene.format')}: room.rir_method = \"pyroomacoustics\" renders omni capsules only; "
                                f"use \"hybrid\" or \"ism\" for scene.format = \"foa\""))
@@ -232,6 +234,44 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
                     f"{where}: room.rt60 minimum {rt[0]} s is below what pyroomacoustics can make in the largest "
                     f"room ({limit:.2f} s: Sabine's RT60 with fully absorbing walls); raise room.rt60, shrink the "
                     f"room, or use room.rir_method = \"hybrid\""))
+    return out
+
+
+def _query_problems(cfg: Config, where: str) -> list[ConfigError]:
+    """Queries, pairing and similarity (docs/queries.md)."""
+    sc, out = cfg.scene, []
+    known = values(Relation)
+    bad = [r for r in sc.relations if r not in known]
+    if bad or not sc.relations:
+        out.append(ConfigError(f"{where}: scene.relations = {list(sc.relations)!r}: "
+                               f"{'unknown ' + repr(bad[0]) if bad else 'empty'}; choose among {', '.join(known)}"))
+    wants = set(sc.query.options)
+    same_kind = sc.same_kind_distractors > 0 or QueryType.COMPOSITE in wants
+    if not bad and same_kind and not {Relation.LOUDEST, Relation.QUIETEST} & set(sc.relations):
+        out.append(ConfigError(f"{where}: scene.relations must include loudest or quietest when scenes hold same-kind "
+                               f"distractors (composite queries or scene.same_kind_distractors > 0): the planner "
+                               f"guarantees those scenes a true query through the distractors' TIR"))
+    if sc.hard_similarity >= sc.caption_similarity and sc.pairing == Pairing.HARD:
+        out.append(ConfigError(f"{where}: scene.hard_similarity {sc.hard_similarity} must be below "
+                               f"scene.caption_similarity {sc.caption_similarity}: the hard band lies between them"))
+    if sc.easy_similarity > sc.caption_similarity:
+        out.append(ConfigError(f"{where}: scene.easy_similarity {sc.easy_similarity} is above the guard "
+                               f"scene.caption_similarity {sc.caption_similarity}; lower it"))
+    if same_kind and sc.same_kind_similarity <= sc.caption_similarity:
+        out.append(ConfigError(f"{where}: scene.same_kind_similarity {sc.same_kind_similarity} must be above "
+                               f"scene.caption_similarity {sc.caption_similarity}: a same-kind distractor is one the "
+                               f"caption also describes"))
+    ob = sc.onset.bounds
+    if ob is not None and ob[1] >= cfg.audio.duration:
+        out.append(ConfigError(f"{where}: scene.onset can reach {ob[1]} s, but scenes last audio.duration = "
+                               f"{cfg.audio.duration} s; a source must start before the scene ends"))
+    emb = cfg.corpus.caption_embeddings
+    if sc.similarity == SimilarityMeasure.EMBEDDINGS and not emb:
+        out.append(ConfigError(f"{where}: scene.similarity = \"embeddings\" needs corpus.caption_embeddings = "
+                               f"FILE.npz (write one with `tsel corpus embed`), or use \"tfidf\""))
+    if emb and sc.similarity != SimilarityMeasure.EMBEDDINGS:
+        out.append(ConfigError(f"{where}: corpus.caption_embeddings is set but scene.similarity is "
+                               f"{sc.similarity!r}; set scene.similarity = \"embeddings\" to use it"))
     return out
 
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-from ..choices import (Additive, ArrayFormat, AudioCoding, BadClipPolicy, CheckLevel, CorpusFormat, Motion, PathKind,
-                       RirMethod, Scenario, values)
+from ..choices import (Additive, ArrayFormat, AudioCoding, BadClipPolicy, CheckLevel, CorpusFormat, Motion, Pairing,
+                       PathKind, QueryType, Relation, RirMethod, Scenario, SimilarityMeasure, values)
 from ..distributions import Dist
 from ..jsonable import jsonable
 
@@ -32,11 +32,11 @@ def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None,
 
 
 def dist(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, why: str = "",
-         integer: bool = False):
+         integer: bool = False, new: bool = False):
     """A sampled field (a constant or a distribution); bounds apply to every value it can
     draw; ``integer``: a count, so a constant or a ``choose`` of whole numbers."""
     meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": None,
-            "lt": None, "why": why, "path": False, "dist": True, "integer": integer}
+            "lt": None, "why": why, "path": False, "dist": True, "integer": integer, "new": new}
     return field(default_factory=lambda: Dist.parse(default, "default"), metadata=meta)
 
 
@@ -62,6 +62,10 @@ class CorpusConfig:
     min_duration: float = option(1.0, "shorter clips are bad clips", unit="s")
     max_channels: int = option(8, "a file with more channels is a bad clip (probably not a recording)",
                                unit="channels")
+    caption_embeddings: str = option("", "an `.npz` of caption vectors (`captions` [N] str, `vectors` [N, D]; CLAP or "
+                                         "MiniLM embeddings made elsewhere, or by `tsel corpus embed`) for "
+                                         "`scene.similarity = \"embeddings\"`; it must hold every caption of the "
+                                         "corpus", path=True, new=True)
 
 
 @dataclass(frozen=True)
@@ -116,9 +120,50 @@ class SceneConfig:
                                           "sources hold it on every frame or none, a moving source may cross "
                                           "another for the rest (at 40 °/s a 10 s walk goes all the way round)",
                                      unit="fraction", gt=0.0, le=1.0)
-    caption_similarity: float = option(0.5, "an interferer is rejected if any of its captions shares more than this "
-                                            "word overlap (Jaccard, function words ignored) with the query, so the "
-                                            "query picks out one source", unit="Jaccard 0-1")
+    caption_similarity: float = option(0.5, "the ambiguity guard: an interferer is rejected if any of its captions is "
+                                            "more similar than this to the query caption (`similarity`), so the "
+                                            "caption picks out one source", unit="similarity 0-1")
+    similarity: str = option("words", "the caption similarity of the guard, pairing and same-kind distractors: "
+                                      "`words` (word-set Jaccard, function words ignored), `tfidf` (TF-IDF cosine over "
+                                      "the split's captions, word stems; recommended), `embeddings` (cosine of "
+                                      "`corpus.caption_embeddings`); docs/queries.md", choices=SimilarityMeasure, new=True)
+    query: Dist = dist("caption", "what the query is: `caption` (one caption of the target), `relational` (\"the "
+                                  "loudest sound\"), `composite` (a caption plus a relation, with a same-kind "
+                                  "distractor), or a `choose` of them with weights; relations are decided on the "
+                                  "rendered scene (docs/queries.md)", choices=QueryType, new=True)
+    relations: tuple = option(tuple(r.value for r in Relation),
+                              "relations relational and composite queries may state (docs/queries.md), tried in "
+                              "a random order per scene until one holds with its margin", new=True)
+    pairing: str = option("random", "interferers: `random` (any clip passing the guard), `hard` (caption similarity "
+                                    "in [`hard_similarity`, `caption_similarity`]: close but not the same sound), "
+                                    "`easy` (at most `easy_similarity`)", choices=Pairing, new=True)
+    hard_similarity: float = option(0.25, "lower end of the `hard` pairing band (the upper end is "
+                                          "`caption_similarity`)", unit="similarity 0-1", gt=0.0, le=1.0,
+                                    why="a hard interferer shares something with the query", new=True)
+    easy_similarity: float = option(0.05, "an `easy` interferer's captions are at most this similar to the query "
+                                          "caption", unit="similarity 0-1", ge=0.0, le=1.0, new=True)
+    onset: Dist = dist(0.0, "when each source starts in the scene (silence before; the clip is cut at the scene's "
+                            "end): a constant or a distribution, drawn per source. Real clips sound from their "
+                            "first frame, so `starts_first` / `starts_last` queries need this, e.g. "
+                            "`[\"uniform\", 0.0, 3.0]`", unit="s", ge=0.0, new=True)
+    same_kind_distractors: float = option(0.0, "probability that an interferer is a different clip of the target's "
+                                               "kind (caption similarity at least `same_kind_similarity`); such "
+                                               "scenes get a composite or relational query, never a bare caption",
+                                          unit="probability", ge=0.0, le=1.0, new=True)
+    same_kind_similarity: float = option(0.6, "a same-kind distractor's captions are at least this similar to the "
+                                              "query caption", unit="similarity 0-1", gt=0.0, le=1.0, new=True)
+    margin_level: float = option(3.0, "loudest / quietest: the target's level at the array differs from every "
+                                      "other source's by at least this (same-kind distractors get |TIR| of at least "
+                                      "this plus 0.5 dB)", unit="dB", gt=0.0, new=True)
+    margin_distance: float = option(0.5, "nearest / farthest: the target is at least this much nearer / farther "
+                                         "than every other directional source, on every label frame", unit="m",
+                                    gt=0.0, new=True)
+    margin_onset: float = option(0.5, "starts first / last: the target's first active frame is at least this "
+                                      "before / after every other source's", unit="s", gt=0.0, new=True)
+    margin_motion: float = option(10.0, "moving: the target's direction travels at least this far while every "
+                                        "other source stays put", unit="deg", gt=0.0, new=True)
+    margin_solo: float = option(1.0, "heard at T: the target is the only active source on every label frame "
+                                     "within this window centred on T", unit="s", gt=0.0, new=True)
     motion: str = option("static", "`static`, `moving` or `mixed`. In simulated rooms a moving source follows "
                                    "`path`, with an RIR at least every 100 ms and every 4°; with a bank it walks a "
                                    "bank trajectory, starting at a random point in a random direction",

@@ -4,7 +4,9 @@ Planning and finalizing hold it exclusively; rendering holds it shared, so the t
 a job array (``tsel render --shards``) run side by side while a second ``tsel generate``
 into the same folder is refused in one line instead of mixing two plans. The lock file
 also marks the folder as a tsel-data dataset (docs/reliability.md, "ownership").
-Locks are released when the holder exits, however it exits (``flock``).
+Locks are released when the holder exits, however it exits (``flock``). A process that
+holds the lock exclusively may enter it again in any mode (``tsel generate`` holds it from
+planning to finalizing, so no other run can slip in between its stages).
 """
 from __future__ import annotations
 
@@ -13,6 +15,10 @@ import os
 
 from ..errors import DatasetError
 from .layout import Layout
+
+
+# lock files this process holds exclusively -> how many times entered
+_HELD: dict[str, int] = {}
 
 
 class DatasetLock:
@@ -25,6 +31,10 @@ class DatasetLock:
 
     def __enter__(self) -> "DatasetLock":
         path = self.layout.lock_file
+        self._key = os.path.realpath(path)
+        if self._key in _HELD:
+            _HELD[self._key] += 1
+            return self
         try:
             self._fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as e:
@@ -38,9 +48,16 @@ class DatasetLock:
             other = "is rendering or finalizing" if self.exclusive else "is planning or finalizing"
             raise DatasetError(f"{self.layout.root}: another tsel process {other} this dataset; wait for it to end "
                                f"before you {self.what}, or choose another --out") from None
+        if self.exclusive:
+            _HELD[self._key] = 1
         return self
 
     def __exit__(self, *exc) -> None:
+        if self._key in _HELD:
+            _HELD[self._key] -= 1
+            if _HELD[self._key]:
+                return
+            del _HELD[self._key]
         if self._fd is not None:
             fcntl.flock(self._fd, fcntl.LOCK_UN)
             os.close(self._fd)

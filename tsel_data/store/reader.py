@@ -43,6 +43,10 @@ class Scene:
     record:        the scene's :class:`~tsel_data.store.records.SceneRecord` (room,
                    array pose, clips, captions, levels, seed), or None when read with
                    ``load_records=False``.
+    query_type:    ``caption``, ``relational`` or ``composite``; query_relation: the
+                   relation stated (None for a caption); pairing: ``random``, ``hard``,
+                   ``easy``, ``same-kind`` or ``mixed`` (docs/queries.md). Datasets made
+                   with default query settings read as ``caption`` / ``random``.
     """
 
     scene_id: str
@@ -59,6 +63,9 @@ class Scene:
     label_hop: float
     format: str
     record: SceneRecord | None = None
+    query_type: str = "caption"
+    query_relation: str | None = None
+    pairing: str = "random"
 
     @property
     def n_sources(self) -> int:
@@ -97,6 +104,7 @@ class _ShardMeta:
     fs: int
     label_hop: float
     format: str
+    query_columns: dict | None = None  # QUERY_COLUMNS of shards with extended queries
 
 
 def _raw_chunks(ds: h5py.Dataset) -> bool:
@@ -148,6 +156,11 @@ class SceneDataset:
     def caption_similarity(self) -> float:
         """The ambiguity guard the dataset was planned with (``scene.caption_similarity``)."""
         return float((self.doc.config.get("scene") or {}).get("caption_similarity", 0.5))
+
+    @property
+    def similarity(self) -> str:
+        """The caption similarity the dataset was planned with (``scene.similarity``)."""
+        return str((self.doc.config.get("scene") or {}).get("similarity", "words"))
 
     # --- process-local state --------------------------------------------------------
     def _reset_handles(self) -> None:
@@ -218,7 +231,9 @@ class SceneDataset:
                 ids=list(f["scene_id"].asstr()[()]), audio=f["audio"], coding=coding_of(f["audio"]),
                 raw_chunks=_raw_chunks(f["audio"]),
                 fs=int(f.attrs.get("fs", self.fs)), label_hop=float(f.attrs.get("label_hop", self.label_hop)),
-                format=as_str(f.attrs.get("format"), self.format))
+                format=as_str(f.attrs.get("format"), self.format),
+                query_columns={k: list(f[k].asstr()[()]) for k in ("query_type", "query_relation", "pairing")}
+                if "query_type" in f else None)
             self._check_pair(k, m.ids)
             self._meta[k] = m
         return m
@@ -274,6 +289,13 @@ class SceneDataset:
         # Shards pad S to their largest scene; trim to this scene's own sources.
         n_src = len(rec.sources) if rec is not None and rec.sources else m.labels["azimuth"].shape[1]
         lab = m.labels
+        qc = m.query_columns
+        if qc is not None:
+            qtype, qrel, pairing = qc["query_type"][r], qc["query_relation"][r] or None, qc["pairing"][r]
+        elif rec is not None:
+            qtype, qrel, pairing = rec.query_type, rec.query_relation, rec.pairing
+        else:
+            qtype, qrel, pairing = "caption", None, "random"
         return Scene(
             scene_id=m.ids[r],
             split=self.split,
@@ -289,6 +311,9 @@ class SceneDataset:
             label_hop=m.label_hop,
             format=m.format,
             record=rec,
+            query_type=qtype,
+            query_relation=qrel,
+            pairing=pairing,
         )
 
     @staticmethod

@@ -14,6 +14,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ..captions import answerable_queries
 from ..recipe import BankWalk
 
 # Labels in the JSON are rounded: angles to 3 decimals, distances to 4, so the HDF5
@@ -108,7 +109,9 @@ class SourceRecord(_JsonMapping):
 
     azimuth, elevation: [F] degrees, distance: [F] metres (None where positionless);
     active: [F] bool; tir_db, gain_db: dB; level_dbfs: active-frame RMS of its image
-    in the mixture (mean over mic channels; W for FOA).
+    in the mixture (mean over mic channels; W for FOA). pairing (``target``, ``random``,
+    ``hard``, ``easy``, ``same-kind``) and caption_similarity (of its captions to the query
+    caption): only in records of datasets with extended queries (docs/queries.md), else None.
     """
 
     role: str
@@ -127,13 +130,19 @@ class SourceRecord(_JsonMapping):
     tir_db: float | None = None
     gain_db: float | None = None
     level_dbfs: float | None = None
+    pairing: str | None = None
+    caption_similarity: float | None = None
 
     def to_json(self) -> dict:
-        return {"role": self.role, "clip_id": self.clip_id, "audio": self.audio, "captions": list(self.captions),
-                "spatial": self.spatial, "moving": self.moving, "position": self.position, "path": self.path,
-                "bank": None if self.bank is None else self.bank.to_dict(),
-                "azimuth": self.azimuth, "elevation": self.elevation, "distance": self.distance,
-                "active": self.active, "tir_db": self.tir_db, "gain_db": self.gain_db, "level_dbfs": self.level_dbfs}
+        d = {"role": self.role, "clip_id": self.clip_id, "audio": self.audio, "captions": list(self.captions),
+             "spatial": self.spatial, "moving": self.moving, "position": self.position, "path": self.path,
+             "bank": None if self.bank is None else self.bank.to_dict(),
+             "azimuth": self.azimuth, "elevation": self.elevation, "distance": self.distance,
+             "active": self.active, "tir_db": self.tir_db, "gain_db": self.gain_db, "level_dbfs": self.level_dbfs}
+        if self.pairing is not None:  # extended queries only: default records keep format 1's bytes
+            d["pairing"] = self.pairing
+            d["caption_similarity"] = self.caption_similarity
+        return d
 
     @classmethod
     def from_json(cls, d: dict, k: int = 0) -> "SourceRecord":
@@ -145,7 +154,8 @@ class SourceRecord(_JsonMapping):
                    bank=None if bank is None else BankWalk.from_dict(bank),
                    azimuth=d.get("azimuth") or [], elevation=d.get("elevation") or [],
                    distance=d.get("distance") or [], active=d.get("active") or [], tir_db=d.get("tir_db"),
-                   gain_db=d.get("gain_db"), level_dbfs=d.get("level_dbfs"))
+                   gain_db=d.get("gain_db"), level_dbfs=d.get("level_dbfs"), pairing=d.get("pairing"),
+                   caption_similarity=d.get("caption_similarity"))
 
     def labels(self, key: str) -> np.ndarray:
         """One label row (``azimuth``, ``elevation`` or ``distance``) as float64 [F], NaN for null."""
@@ -173,7 +183,12 @@ class LevelsRecord(_JsonMapping):
 
 @dataclass(frozen=True)
 class SceneRecord(_JsonMapping):
-    """Everything known about one rendered scene (docs/format.md); source 0 is the target."""
+    """Everything known about one rendered scene (docs/format.md); source 0 is the target.
+
+    The query fields (docs/queries.md) are written only by datasets with extended queries
+    (``query_wanted`` is then set); other records read as ``query_type = "caption"``,
+    ``pairing = "random"``, so every record answers them.
+    """
 
     scene_id: str
     split: str
@@ -187,16 +202,42 @@ class SceneRecord(_JsonMapping):
     array: ArrayRecord
     sources: tuple[SourceRecord, ...]
     levels: LevelsRecord
+    query_type: str = "caption"
+    query_relation: str | None = None
+    query_evidence: dict | None = None
+    query_alternatives: list | None = None
+    pairing: str = "random"
+    query_wanted: str | None = None
 
     @property
     def target(self) -> SourceRecord:
         return self.sources[0]
 
+    @property
+    def extended(self) -> bool:
+        """Whether the record carries the query fields (extended queries, docs/queries.md)."""
+        return self.query_wanted is not None
+
+    def query_pool(self, caption_similarity: float = 0.5) -> list[str]:
+        """Every query as true and unambiguous as ``query``: the recorded alternatives
+        (other wordings of the same relation, or the captions that pass the dataset's
+        own similarity guard), or for records without them the target's captions that
+        pass the word-set guard ``caption_similarity`` against every other source."""
+        if self.extended:
+            return list(self.query_alternatives or ()) or [self.query]
+        return answerable_queries(self.sources[0].captions, [s.captions for s in self.sources[1:]],
+                                  caption_similarity) or [self.query]
+
     def to_json(self) -> dict:
-        return {"scene_id": self.scene_id, "split": self.split, "index": self.index, "seed": self.seed,
-                "scenario": self.scenario, "query": self.query, "motion": self.motion,
-                "rir_method": self.rir_method, "room": self.room.to_json(), "array": self.array.to_json(),
-                "sources": [s.to_json() for s in self.sources], "levels": self.levels.to_json()}
+        d = {"scene_id": self.scene_id, "split": self.split, "index": self.index, "seed": self.seed,
+             "scenario": self.scenario, "query": self.query}
+        if self.extended:
+            d.update(query_type=self.query_type, query_relation=self.query_relation,
+                     query_evidence=self.query_evidence, query_wanted=self.query_wanted, pairing=self.pairing,
+                     query_alternatives=self.query_alternatives)
+        d.update(motion=self.motion, rir_method=self.rir_method, room=self.room.to_json(), array=self.array.to_json(),
+                 sources=[s.to_json() for s in self.sources], levels=self.levels.to_json())
+        return d
 
     @classmethod
     def from_json(cls, d: dict) -> "SceneRecord":
@@ -206,4 +247,7 @@ class SceneRecord(_JsonMapping):
                    motion=d.get("motion", "unknown"), rir_method=d.get("rir_method", "unknown"),
                    room=RoomRecord.from_json(d.get("room")), array=ArrayRecord.from_json(d.get("array")),
                    sources=tuple(SourceRecord.from_json(s, k) for k, s in enumerate(d.get("sources") or [])),
-                   levels=LevelsRecord.from_json(d.get("levels")))
+                   levels=LevelsRecord.from_json(d.get("levels")), query_type=d.get("query_type") or "caption",
+                   query_relation=d.get("query_relation"), query_evidence=d.get("query_evidence"),
+                   query_alternatives=d.get("query_alternatives"), pairing=d.get("pairing") or "random",
+                   query_wanted=d.get("query_wanted"))

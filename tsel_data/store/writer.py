@@ -37,7 +37,9 @@ class RenderedScene:
 
     audio: float32 [C, T]. azimuth/elevation/distance: float32 [S, F] (NaN where a
     source has no position). active: bool [S, F]. mic_positions: float32 [C, 3] array
-    frame. record: the JSON description of the scene (docs/format.md).
+    frame. record: the JSON description of the scene (docs/format.md). query_info: with
+    extended queries, the shard's per-scene query columns (``query_type``,
+    ``query_relation``, ``query_margin``, ``pairing``); None otherwise.
     """
 
     scene_id: str
@@ -49,6 +51,11 @@ class RenderedScene:
     active: np.ndarray
     mic_positions: np.ndarray
     record: SceneRecord | None = None
+    query_info: dict | None = None
+
+
+# Per-scene query columns of a shard with extended queries (docs/format.md): name -> default.
+QUERY_COLUMNS = {"query_type": "caption", "query_relation": "", "query_margin": float("nan"), "pairing": "random"}
 
 
 def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene], attrs: dict,
@@ -152,6 +159,13 @@ class ShardWriter:
                              track_times=False)
             h.create_dataset("scene_id", data=np.array([s.scene_id for s in scenes], dtype=object), dtype=str_t,
                              track_times=False)
+            if any(s.query_info for s in scenes):  # absent otherwise: default shards keep their bytes
+                for key, default in QUERY_COLUMNS.items():
+                    vals = [(s.query_info or {}).get(key, default) for s in scenes]
+                    if isinstance(default, str):
+                        h.create_dataset(key, data=np.array(vals, dtype=object), dtype=str_t, track_times=False)
+                    else:
+                        h.create_dataset(key, data=np.array(vals, dtype=np.float32), track_times=False)
             h.create_dataset("mic_positions", data=np.stack([s.mic_positions for s in scenes]).astype(np.float32),
                              track_times=False)
             for k, v in sorted({"split": self.split, "shard": self.shard, **self.attrs}.items()):
