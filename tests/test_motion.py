@@ -10,7 +10,8 @@ from tsel_data.banks.scenes import resolve_bank
 from tsel_data.catalog import build_catalog
 from tsel_data.geometry import azimuth_difference, sph_to_cart
 from tsel_data.pipeline import generate, plan_dataset
-from tsel_data.plan import CatalogView, bank_request
+from tsel_data.plan import CatalogView, bank_request, plan_roots
+from tsel_data.store.layout import Layout
 from tsel_data.recipe import SceneRecipe
 from tsel_data.render import render_scene, source_labels
 
@@ -256,12 +257,12 @@ def test_banks_holding_two_formats_are_used_in_the_configs_format(tmp_path, demo
         out = str(tmp_path / f"out-{bank.name}-{fmt}")
         plan_dataset(cfg, out)
         r = SceneRecipe.from_json(open(os.path.join(out, "plan", "train.jsonl")).readline())
-        scene = render_scene(r)
+        scene = render_scene(r, plan_roots(cfg, Layout(out)))  # the plan names the bank; the roots place it
         assert scene.record["array"]["format"] == fmt and np.all(np.isfinite(scene.audio))
         if bank.name == "SS":  # the mic files hold 2.0, the foa files 1.0: the right files were read
             from tsel_data.banks.scenes import open_bank_cached
 
-            b = open_bank_cached(r.bank.path, fmt)
+            b = open_bank_cached(str(bank), fmt)
             src = r.sources[0].bank
             assert np.all(b.read(src.room, src.trajectory, src.indices[:1]) == (1.0 if fmt == "foa" else 2.0))
 

@@ -29,7 +29,7 @@ FAST = ["audio.duration=3.0", 'room.rt60=["uniform", 0.3, 0.4]', 'scene.similari
 def stems(source: SceneSource, i: int, scene) -> np.ndarray:
     """Each source's contribution to the mixture [S, C, T], rebuilt from the recipe's clips
     and the record's gains, and checked to add up to the rendered mixture."""
-    r = source.recipe(i)
+    r = source.view.roots.resolve(source.recipe(i))  # the clips where they are here
     dry = np.zeros((len(r.sources), r.n_samples))
     for k, s in enumerate(r.sources):  # each clip from its start in the scene (scene.onset)
         n0 = int(round(s.start * r.fs))

@@ -21,12 +21,12 @@ def made(tmp_path_factory, demo_corpus):
 
 def test_stems_add_up_to_the_stored_mixture(made):
     from tsel_data.inspect import find_scene
-    from tsel_data.stems import render_stems, scene_recipe
+    from tsel_data.stems import dataset_roots, render_stems, scene_recipe
 
     for i in range(3):
         scene = find_scene(str(made), f"test/{i}")
         recipe = scene_recipe(str(made), "test", i, scene.scene_id)
-        stems, same = render_stems(recipe, scene.audio)
+        stems, same = render_stems(recipe, scene.audio, dataset_roots(str(made)))
         assert same and stems.shape == (len(recipe.sources), *scene.audio.shape)
         np.testing.assert_allclose(stems.sum(axis=0), scene.audio, atol=2e-6)
         # the target alone is the target: its level is the one the record gives

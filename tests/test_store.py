@@ -109,3 +109,34 @@ def test_a_shard_with_a_wrong_coding_is_refused(coded):
         json.dump(doc, open(p, "w"), indent=1)
     with pytest.raises(DatasetError):
         open_dataset(out[coding], "nope")
+
+
+def test_plan_ranges_are_read_across_block_boundaries(tmp_path):
+    from tsel_data.store.layout import Layout
+    from tsel_data.store.plans import read_plan_range
+
+    layout = Layout(str(tmp_path))
+    os.makedirs(layout.plan_dir)
+    lines = [f'{{"scene_id": "train-{i:06d}", "pad": "{"x" * (i % 7)}"}}' for i in range(50)]
+    with open(layout.plan_file("train"), "w", encoding="utf-8") as f:
+        f.write("\n".join(lines))  # no newline after the last line
+    for block in (1, 5, 17, 64, 1 << 20):
+        for start, stop in ((0, 50), (0, 1), (13, 29), (49, 50), (40, 60), (50, 51)):
+            assert read_plan_range(layout, "train", start, stop, block=block) == lines[start:stop], (block, start, stop)
+
+
+def test_a_job_array_task_reads_only_its_shards_recipes(tmp_path, small_config):
+    from tsel_data.errors import DatasetError
+    from tsel_data.pipeline import plan_dataset, render_shards
+    from tsel_data.store.layout import Layout
+
+    cfg = small_config("output.shard_size=2", "audio.duration=1.0", splits={"train": 6, "val": 0, "test": 0})
+    out = str(tmp_path / "ds")
+    plan_dataset(cfg, out)
+    path = Layout(out).plan_file("train")
+    lines = open(path, encoding="utf-8").read().splitlines()
+    lines[5] = "{damaged"  # scene 5, in shard 2
+    open(path, "w", encoding="utf-8").write("\n".join(lines) + "\n")
+    assert render_shards(out, shards=range(0, 2), progress=False) == {"train": 4, "val": 0, "test": 0}
+    with pytest.raises(DatasetError, match=r"train.jsonl:6: damaged scene recipe"):
+        render_shards(out, shards=range(2, 3), progress=False)

@@ -394,16 +394,29 @@ def _prepare(job) -> bool:
     return prepare_clip(*job)
 
 
-def write_missing_clips(path: str, scan: CatalogScan) -> None:
+def write_missing_clips(path: str, scan: CatalogScan, root: str = "") -> None:
     """``missing_clips.json``: per split, how many clips the manifest lists, how many
-    audio files are absent, where they were looked for, and their clip ids (compact:
-    ids only, the problem is the same for all)."""
+    audio files are absent, where they were looked for (relative to the corpus folder
+    ``root``), and their clip ids (compact: ids only, the problem is the same for all)."""
     doc = {"splits": {split: {"listed": scan.counts[split]["clips"], "missing": len(clips),
-                              "audio_dir": scan.audio_dirs.get(split, ""), "clip_ids": [c.id for c in clips]}
+                              "audio_dir": _below(scan.audio_dirs.get(split, ""), root),
+                              "clip_ids": [c.id for c in clips]}
                       for split, clips in scan.missing.items() if clips}}
     write_json(path, doc)
 
 
-def write_bad_clips(path: str, bad: list[BadClip]) -> None:
-    """``bad_clips.jsonl``: one JSON object per bad clip."""
-    write_lines(path, [json.dumps(b.to_json(), ensure_ascii=False) for b in bad])
+def write_bad_clips(path: str, bad: list[BadClip], root: str = "") -> None:
+    """``bad_clips.jsonl``: one JSON object per bad clip, its paths relative to the corpus
+    folder ``root`` (a dataset names no folder of the machine it was made on)."""
+    write_lines(path, [json.dumps({**b.to_json(), "origin": _below(b.origin, root),
+                                   "problem": _below(b.problem, root)}, ensure_ascii=False) for b in bad])
+
+
+def _below(text: str, root: str) -> str:
+    """``text`` with the corpus folder's path taken off every path below it."""
+    if not root or not text:
+        return text
+    root = os.path.abspath(root)
+    if os.path.abspath(text) == root:
+        return "."
+    return text.replace(root + os.sep, "")

@@ -124,7 +124,7 @@ class SceneSource:
     def get(self, i: int, epoch: int | None = None) -> Scene:
         """Scene ``i`` rendered now, as the offline reader returns it."""
         r = self.recipe(i, epoch)
-        s = render_scene(r)
+        s = render_scene(r, self.view.roots)
         rec = s.record
         return Scene(scene_id=s.scene_id, split=self.split, index=r.index, query=s.query, audio=s.audio,
                      azimuth=s.azimuth, elevation=s.elevation, distance=s.distance, active=s.active,

@@ -30,15 +30,15 @@ from .errors import AudioError, BankError, DatasetError
 from .executors import Runner
 from .geometry import CHANNEL_NAMES
 from .h5str import as_strs
-from .plan import plan_split_json, prepare_views
-from .recipe import SceneRecipe
+from .plan import plan_roots, plan_split_json, prepare_views
+from .recipe import Roots, SceneRecipe
 from .render import render_scene
 from .store.dataset import ShardEntry, dataset_doc, shard_attrs
 from .store.integrity import read_seal, shard_fingerprint, shard_state
 from .store.layout import Layout
 from .store.lock import DatasetLock
-from .store.plans import (ShardTask, has_plan, plan_doc, read_plan_doc, read_plan_lines, read_split_plan, shard_tasks,
-                          stored_config)
+from .store.plans import (ROOT_KEYS, ShardTask, has_plan, local_roots, plan_doc, portable_roots, read_plan_doc,
+                          read_plan_lines, read_plan_range, read_split_plan, shard_tasks, stored_config)
 from .store.writer import ShardWriter
 
 
@@ -56,13 +56,29 @@ def planned_with(layout: Layout, cfg: Config) -> str:
         return "different"
 
 
-def plan_differences(layout: Layout, cfg: Config) -> list[Difference]:
+def plan_differences(layout: Layout, cfg: Config, roots: bool = False) -> list[Difference]:
     """The keys where ``cfg`` differs from the config ``layout``'s plan was made with
-    (DatasetError when the stored config is unreadable)."""
+    (DatasetError when the stored config is unreadable). The roots (where the corpus and
+    the bank are: :data:`~tsel_data.store.plans.ROOT_KEYS`) are not the plan's business:
+    a dataset may move, and its inputs too; they are compared only with ``roots``."""
     stored = stored_config(layout)
     if stored is None:
         raise DatasetError(f"{layout.config_file} is damaged or holds no config; plan again into a new --out")
-    return config_differences(stored, cfg, where=layout.config_file)
+    diffs = config_differences(stored, cfg, where=layout.config_file)
+    return [d for d in diffs if (d.key in ROOT_KEYS) == roots]
+
+
+def _move_roots(layout: Layout, cfg: Config) -> None:
+    """Store ``cfg``'s roots in the plan (a resume that names where the inputs are now)."""
+    if plan_differences(layout, cfg, roots=True):
+        doc = read_plan_doc(layout)
+        config = dict(doc["config"])
+        given = portable_roots(cfg.to_dict(), layout.root)
+        for key in ROOT_KEYS:
+            sec, name = key.split(".")
+            if name in (given.get(sec) or {}):
+                config[sec] = {**config.get(sec, {}), name: given[sec][name]}
+        write_json(layout.config_file, {**doc, "config": config})
 
 
 def growth(diffs: list[Difference]) -> dict[str, tuple[int, int]] | None:
@@ -190,6 +206,7 @@ def _plan_locked(cfg: Config, layout: Layout, workers: int, resume: bool, grow: 
                                f"or choose another --out")
         diffs = plan_differences(layout, cfg)
         if not diffs:
+            _move_roots(layout, cfg)
             return {s: sp.count for s, sp in cfg.splits.items()}
         grown = growth(diffs) if grow else None
         if grown is None:
@@ -215,13 +232,15 @@ def _catalog(cfg: Config, layout: Layout, workers: int, progress, report):
 def _write_plan(cfg: Config, layout: Layout, catalog, plans: dict[str, list[str]]) -> None:
     """bad_clips.jsonl, missing_clips.json (when files are missing), the plan files, and
     plan/config.json last: its presence means the plan is complete."""
-    write_bad_clips(layout.bad_clips_file, catalog.bad)
+    corpus = plan_roots(cfg, layout).corpus
+    write_bad_clips(layout.bad_clips_file, catalog.bad, corpus)
     missing = {s: len(c) for s, c in catalog.missing.items() if c}
     if missing:
-        write_missing_clips(layout.missing_clips_file, catalog)
+        write_missing_clips(layout.missing_clips_file, catalog, corpus)
     for split, lines in plans.items():
         write_lines(layout.plan_file(split), lines)
-    doc = plan_doc(cfg.to_dict(), {s: len(c) for s, c in catalog.clips.items()}, len(catalog.bad), missing)
+    doc = plan_doc(portable_roots(cfg.to_dict(), layout.root), {s: len(c) for s, c in catalog.clips.items()},
+                   len(catalog.bad), missing)
     write_json(layout.config_file, doc)
 
 
@@ -262,66 +281,124 @@ def _grow(cfg: Config, layout: Layout, grown: dict[str, tuple[int, int]], worker
     return {split: len(lines) for split, lines in plans.items()}
 
 
-def load_plan(out_dir: str) -> tuple[Config, dict[str, list[SceneRecipe]]]:
+def load_plan(out_dir: str, corpus_dir: str | None = None, bank: str | None = None
+              ) -> tuple[Config, dict[str, list[SceneRecipe]]]:
     """The stored config and every split's recipes.
+
+    Parameters
+    ----------
+    out_dir : str
+    corpus_dir, bank : str, optional
+        Where the corpus and the RIR bank are now, when not where the plan says (a
+        dataset or its inputs moved; a job array on another machine).
 
     Returns
     -------
     (Config, dict)
-        The config ``plan/config.json`` holds, and {split: [SceneRecipe]} in plan order.
+        The config ``plan/config.json`` holds (roots as paths here), and
+        {split: [SceneRecipe]} in plan order.
     """
     layout = Layout(out_dir)
-    cfg = parse_config(read_plan_doc(layout)["config"], where=layout.config_file)
+    cfg = plan_config(out_dir, corpus_dir, bank)
     plans = {s: read_split_plan(layout, s) for s in cfg.splits}
     for s, recipes in plans.items():
-        if len(recipes) != cfg.splits[s].count:
-            # plan files are written before plan/config.json: a grow interrupted in between
-            raise DatasetError(f"{layout.plan_file(s)} holds {len(recipes)} scenes but {layout.config_file} asks "
-                               f"{cfg.splits[s].count}; the plan was interrupted: run the same `tsel generate "
-                               f"... --grow` again")
+        _check_count(layout, cfg, s, len(recipes))
     return cfg, plans
 
 
-def plan_shard_tasks(cfg: Config, plans: dict[str, list]) -> list[ShardTask]:
-    """Every shard of a loaded plan."""
-    return shard_tasks({s: len(r) for s, r in plans.items()}, cfg.output.shard_size)
+def plan_config(out_dir: str, corpus_dir: str | None = None, bank: str | None = None) -> Config:
+    """The config of a dataset's plan (roots as paths here, or as given: :func:`load_plan`)."""
+    layout = Layout(out_dir)
+    raw = local_roots(read_plan_doc(layout)["config"], layout.root)
+    if corpus_dir:
+        raw["corpus"] = {**raw.get("corpus", {}), "dir": os.path.abspath(os.path.expanduser(corpus_dir))}
+    if bank:
+        raw["room"] = {**raw.get("room", {}), "bank": os.path.abspath(os.path.expanduser(bank))}
+    return parse_config(raw, where=layout.config_file)
+
+
+def _check_count(layout: Layout, cfg: Config, split: str, have: int, wanted: int | None = None) -> None:
+    if have != (cfg.splits[split].count if wanted is None else wanted):
+        # plan files are written before plan/config.json: a grow interrupted in between
+        raise DatasetError(f"{layout.plan_file(split)} holds {'fewer than ' if wanted is not None else ''}"
+                           f"{cfg.splits[split].count if wanted is not None else have} scenes but "
+                           f"{layout.config_file} asks {cfg.splits[split].count}; the plan was interrupted: run the "
+                           f"same `tsel generate ... --grow` again")
+
+
+def plan_shard_tasks(cfg: Config) -> list[ShardTask]:
+    """Every shard of a plan (the scene counts are the config's)."""
+    return shard_tasks({s: sp.count for s, sp in cfg.splits.items()}, cfg.output.shard_size)
+
+
+class PlanPart:
+    """The recipes of scenes ``offset`` .. ``offset + len(recipes) - 1`` of a split;
+    sliced with the split's own scene indices."""
+
+    def __init__(self, offset: int = 0, recipes: list | None = None):
+        self.offset, self.recipes = offset, recipes or []
+
+    def __getitem__(self, s: slice) -> list[SceneRecipe]:
+        return self.recipes[s.start - self.offset:s.stop - self.offset]
+
+
+def load_plan_part(layout: Layout, cfg: Config, tasks: list[ShardTask]) -> dict[str, PlanPart]:
+    """{split: PlanPart} holding the recipes of ``tasks`` only (every split of the plan is
+    a key): what a job-array task reads of a large plan."""
+    parts = {}
+    for split in cfg.splits:
+        mine = [t for t in tasks if t.split == split]
+        if not mine:
+            parts[split] = PlanPart()
+            continue
+        start, stop = min(t.start for t in mine), max(t.stop for t in mine)
+        lines = read_plan_range(layout, split, start, stop)
+        if len(lines) != stop - start:
+            _check_count(layout, cfg, split, start + len(lines), wanted=stop)
+        parts[split] = PlanPart(start, [_recipe(layout, split, start + k, line) for k, line in enumerate(lines)])
+    return parts
+
+
+def _recipe(layout: Layout, split: str, index: int, line: str) -> SceneRecipe:
+    try:
+        return SceneRecipe.from_json(line)
+    except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
+        raise DatasetError(f"{layout.plan_file(split)}:{index + 1}: damaged scene recipe ({type(e).__name__}: "
+                           f"{str(e)[:80]}); plan again into a new --out") from None
 
 
 # --- render ----------------------------------------------------------------------------------
 
 
-def shard_inputs(recipes: list[SceneRecipe]) -> list[str]:
-    """Every file a shard's scenes read: their clips and their RIR bank."""
-    return sorted({s.audio for r in recipes for s in r.sources} | {r.bank.path for r in recipes if r.bank})
+def expected_fingerprint(recipes: list[SceneRecipe], roots: Roots) -> str:
+    """The fingerprint a shard of these recipes must carry, with its inputs (clips, RIR
+    bank) as they are now."""
+    return shard_fingerprint([r.to_json() for r in recipes], roots.inputs(recipes))
 
 
-def expected_fingerprint(recipes: list[SceneRecipe]) -> str:
-    """The fingerprint a shard of these recipes must carry, with its inputs as they are now."""
-    return shard_fingerprint([r.to_json() for r in recipes], shard_inputs(recipes))
-
-
-def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attrs: dict) -> int:
+def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attrs: dict, roots: Roots) -> int:
     """Render one shard's recipes and write the shard, sealed with what it was made from;
     returns its scene count."""
-    fingerprint = expected_fingerprint(recipes)  # before reading anything: a clip changed meanwhile is stale
+    fingerprint = expected_fingerprint(recipes, roots)  # before reading anything: a clip changed meanwhile is stale
     with ShardWriter(out_dir, task.split, task.shard, len(recipes), attrs, fingerprint) as w:
         for r in recipes:  # one scene's audio in memory at a time
-            w.add(render_scene(r))
+            w.add(render_scene(r, roots))
     return len(recipes)
 
 
 def _render_task(args) -> tuple[ShardTask, int, str]:
     """One shard; a bad input met only now (a clip or an RIR the checks let through) is
     reported, not raised, so the other shards go on."""
-    out_dir, task, recipes, attrs = args
+    out_dir, task, recipes, attrs, roots = args
     try:
-        return task, render_shard(out_dir, task, recipes, attrs), ""
+        return task, render_shard(out_dir, task, recipes, attrs, roots), ""
     except (AudioError, BankError) as e:
         return task, 0, str(e)
 
 
 def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, progress: bool = True,
-                  executor: str = "local", scheduler: str | None = None) -> dict:
+                  executor: str = "local", scheduler: str | None = None, corpus_dir: str | None = None,
+                  bank: str | None = None) -> dict:
     """Render the plan's shards; complete shards are skipped.
 
     A shard counts as complete only when its seal matches the plan and its files
@@ -342,6 +419,8 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
         ``local`` | ``dask`` | ``dask-local`` (executors.py).
     scheduler : str, optional
         The Dask scheduler's address for ``dask``.
+    corpus_dir, bank : str, optional
+        Where the corpus and the bank are, when not where the plan says (:func:`load_plan`).
 
     Returns
     -------
@@ -356,34 +435,37 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
     """
     out_dir = os.path.abspath(out_dir)  # dask workers may run elsewhere on a shared filesystem
     layout = Layout(out_dir)
-    cfg, plans = load_plan(out_dir)  # a plan is written last by its planner: complete, or absent
+    cfg = plan_config(out_dir, corpus_dir, bank)  # a plan is written last by its planner: complete, or absent
+    roots = plan_roots(cfg, layout)
     with DatasetLock(layout, exclusive=False, what="render it"):
-        tasks = plan_shard_tasks(cfg, plans)
+        tasks = plan_shard_tasks(cfg)
         if shards is not None:
             if shards.stop > len(tasks):
                 raise DatasetError(f"shard range {shards.start}-{shards.stop - 1} is outside the plan's "
                                    f"{len(tasks)} shards (0-{len(tasks) - 1})")
             tasks = [tasks[i] for i in shards]
+        plans = load_plan_part(layout, cfg, tasks)  # only the recipes of these shards
         todo, redo = [], []
         for t in tasks:
-            state, why = shard_state(layout, t.split, t.shard, expected_fingerprint(plans[t.split][t.start:t.stop]))
+            state, why = shard_state(layout, t.split, t.shard,
+                                     expected_fingerprint(plans[t.split][t.start:t.stop], roots))
             if state != "complete":
                 todo.append(t)
                 if state in ("stale", "damaged"):
                     redo.append(f"{t.files[0]} ({why})")
         if redo:
             print(f"rendering {len(redo)} shard(s) again that do not verify, e.g. {redo[0]}", file=sys.stderr)
-        return _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler)
+        return _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler, roots)
 
 
-def _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler) -> dict:
+def _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler, roots) -> dict:
     attrs = shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio)
     done: dict[str, int] = {s: 0 for s in plans}
     failed: list[str] = []
     with Runner(executor, workers if len(todo) > 1 else 1, scheduler) as runner:
         # split by split, so each split gets its own progress bar and rate
         for split in plans:
-            jobs = [(out_dir, t, plans[t.split][t.start:t.stop], attrs) for t in todo if t.split == split]
+            jobs = [(out_dir, t, plans[t.split][t.start:t.stop], attrs, roots) for t in todo if t.split == split]
             total = sum(t.stop - t.start for t in tasks if t.split == split)
             if not total:
                 continue
@@ -408,8 +490,10 @@ def _bar(split: str, total: int, initial: int, progress: bool):
 # --- finalize ----------------------------------------------------------------------------------
 
 
-def finalize(out_dir: str) -> dict:
+def finalize(out_dir: str, corpus_dir: str | None = None, bank: str | None = None) -> dict:
     """Check every shard against the plan and write ``dataset.json`` (atomically, last).
+
+    ``corpus_dir``, ``bank``: where the inputs are, when not where the plan says.
 
     Returns
     -------
@@ -423,13 +507,14 @@ def finalize(out_dir: str) -> dict:
         files), or holds other scenes than the plan puts there.
     """
     layout = Layout(out_dir)
-    cfg, plans = load_plan(out_dir)
+    cfg, plans = load_plan(out_dir, corpus_dir, bank)
+    roots = plan_roots(cfg, layout)
     with DatasetLock(layout, exclusive=True, what="finalize it"):
         entries: dict[str, list] = {split: [] for split in plans}  # config order
         missing, bad = [], []
-        for task in plan_shard_tasks(cfg, plans):
+        for task in plan_shard_tasks(cfg):
             recipes = plans[task.split][task.start:task.stop]
-            state, why = shard_state(layout, task.split, task.shard, expected_fingerprint(recipes), deep=True)
+            state, why = shard_state(layout, task.split, task.shard, expected_fingerprint(recipes, roots), deep=True)
             if state == "missing":
                 missing.append(task.files[0])
                 continue
@@ -450,7 +535,7 @@ def finalize(out_dir: str) -> dict:
         if missing:
             raise DatasetError(f"{len(missing)} shard(s) not rendered yet, e.g. {missing[0]}; "
                                f"run `tsel render {out_dir}` (or `tsel generate ... --resume`) first")
-        doc = dataset_doc(cfg.to_dict(), cfg.seed,
+        doc = dataset_doc(portable_roots(cfg.to_dict(), out_dir), cfg.seed,
                           shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio), entries)
         write_json(layout.dataset_file, doc)
         return doc

@@ -10,6 +10,7 @@ draw is decided in :mod:`tsel_data.banks.scenes`.
 from __future__ import annotations
 
 import math
+import os
 import zlib
 from dataclasses import dataclass
 from concurrent.futures import ProcessPoolExecutor
@@ -17,15 +18,15 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from .banks.paths import sample_bank_path, sample_bank_point
-from .banks.scenes import BankRequest, open_bank_cached, resolve_bank, split_rooms
+from .banks.scenes import BUILTIN_DEMO_BANK, BankRequest, open_bank_cached, resolve_bank, split_rooms
 from .captions import CaptionIndex, load_embeddings, max_similarity, tokens
-from .catalog import MIN_CLIPS, CatalogScan, build_catalog, resolve_corpus_dir
+from .catalog import BUILTIN_DEMO, MIN_CLIPS, CatalogScan, build_catalog, resolve_corpus_dir
 from .choices import Motion, Pairing, QueryType, Relation, Role, Scenario, SimilarityMeasure, Spatial
 from .clip import Clip
 from .config import Config, rooms_without_bank
 from .errors import GeometryError, TselError
 from .geometry import ArrayPose, Room, frame_centres, interpolate_positions, wrap_azimuth
-from .recipe import BankRef, BankWalk, QueryPlan, SceneRecipe, Source
+from .recipe import BankRef, BankWalk, QueryPlan, Roots, SceneRecipe, Source
 from .store.layout import Layout
 
 MAX_TRIES = 200
@@ -35,7 +36,7 @@ class CatalogView:
     """A split's clips with their caption tokens precomputed (shared by every scene), and
     the resolved path of the RIR bank when scenes use one."""
 
-    def __init__(self, clips: list[Clip], bank_path: str | None = None):
+    def __init__(self, clips: list[Clip], bank_path: str | None = None, roots: Roots | None = None):
         if len(clips) < MIN_CLIPS:
             raise TselError(f"a split needs at least {MIN_CLIPS} usable clips to make scenes, it has {len(clips)}")
         self.clips = clips
@@ -43,6 +44,8 @@ class CatalogView:
         # clips cut from the same recording (AudioCaps: same YouTube video) are one sound source
         self.source_key = [c.meta.get("youtube_id") or c.audio for c in clips]
         self.bank_path = bank_path
+        # recipes name their files relative to these (absolute paths without them)
+        self.roots = roots or Roots()
         self._indexes: dict = {}
 
     def caption_index(self, measure: str, embeddings: str = "") -> CaptionIndex:
@@ -77,14 +80,25 @@ def prepare_views(cfg: Config, home: Layout, workers: int = 1,
     problem = rooms_without_bank(cfg)
     if problem:
         raise problem
-    catalog = build_catalog(cfg, resolve_corpus_dir(cfg, home.demo_corpus), workers=workers, progress=progress)
+    corpus_dir = resolve_corpus_dir(cfg, home.demo_corpus)
+    catalog = build_catalog(cfg, corpus_dir, workers=workers, progress=progress)
     bank_path = resolve_bank(bank_request(cfg), home.demo_bank)
-    views = {split: CatalogView(clips, bank_path) for split, clips in catalog.clips.items()}
+    roots = plan_roots(cfg, home)
+    views = {split: CatalogView(clips, bank_path, roots) for split, clips in catalog.clips.items()}
     if extended_queries(cfg):
         for split in cfg.active_splits():
             if split in views:
                 views[split].caption_index(cfg.scene.similarity, cfg.corpus.caption_embeddings)
     return catalog, views
+
+
+def plan_roots(cfg: Config, home: Layout) -> Roots:
+    """Where the files of ``cfg``'s recipes are on this machine: the corpus folder and the
+    RIR bank (the built-in ones in ``home``, the dataset folder)."""
+    corpus = home.demo_corpus if cfg.corpus.dir == BUILTIN_DEMO else cfg.corpus.dir
+    bank = home.demo_bank if cfg.room.bank == BUILTIN_DEMO_BANK else cfg.room.bank
+    return Roots(os.path.abspath(os.path.expanduser(corpus)) if corpus else "",
+                 os.path.abspath(os.path.expanduser(bank)) if bank else "")
 
 
 def bank_request(cfg: Config) -> BankRequest:
@@ -174,6 +188,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
         tir = pairs.separate_levels(tir)
     if cat.bank_path:
         room, array, places, bank = _place_bank(cfg, rng, spatial, split, index, cat.bank_path)
+        bank = BankRef(cat.roots.relative_bank(bank.path), bank.room)
     else:
         (room, array, places), bank = _place(cfg, rng, spatial, split, index), None
     starts = _starts(cfg, split, index, len(chosen))
@@ -181,7 +196,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     for k, ci in enumerate(chosen):
         clip = cat.clips[ci]
         sources.append(Source(
-            role=Role.TARGET if k == 0 else Role.INTERFERER, clip_id=clip.id, audio=clip.audio,
+            role=Role.TARGET if k == 0 else Role.INTERFERER, clip_id=clip.id, audio=cat.roots.relative_clip(clip.audio),
             captions=clip.captions, spatial=spatial[k], offset=clip.offset,
             tir_db=None if tir[k] is None else round(tir[k], 4), start=starts[k], **(places[k] or {}),
         ))

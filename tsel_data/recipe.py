@@ -4,11 +4,17 @@
 a dataset can be planned once, inspected before any audio exists, and rendered in any
 order on any number of workers. Recipes round-trip through JSON (``to_dict`` /
 ``from_dict``); the plan stage writes one per line to ``plan/{split}.jsonl``.
+
+The files a recipe names are relative to two roots (:class:`Roots`): clips to the corpus
+folder, the RIR bank to the bank given by ``room.bank``. So a plan, and every record
+rendered from it, holds no path of the machine it was made on; the renderer is given the
+roots of the machine it runs on.
 """
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+import os
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -56,7 +62,7 @@ class BankWalk:
 
 @dataclass(frozen=True)
 class BankRef:
-    """The RIR bank a scene is rendered from: ``path`` (the resolved bank file or folder)
+    """The RIR bank a scene is rendered from: ``path`` (the bank's name; :class:`Roots` says where it is)
     and the bank ``room`` every source of the scene uses."""
 
     path: str
@@ -286,6 +292,47 @@ class SceneRecipe:
                 if pts is not None:
                     _inside(pts, dims, wall_margin, f"{self.scene_id}: source {i}")
         return self
+
+
+@dataclass(frozen=True)
+class Roots:
+    """Where a recipe's relative paths point on this machine: ``corpus`` (the corpus
+    folder: clip paths are relative to it) and ``bank`` (the bank file or folder; a
+    config has one bank, so a recipe's bank name just names it). Empty roots leave paths
+    as they are (recipes made with absolute paths)."""
+
+    corpus: str = ""
+    bank: str = ""
+
+    def relative_clip(self, path: str) -> str:
+        """A clip's path as a plan stores it: relative to the corpus, with ``/``."""
+        if not self.corpus:
+            return path
+        return os.path.relpath(path, self.corpus).replace(os.sep, "/")
+
+    def relative_bank(self, path: str) -> str:
+        return os.path.basename(os.path.normpath(path)) if self.bank else path
+
+    def clip(self, rel: str) -> str:
+        return os.path.normpath(os.path.join(self.corpus, rel)) if self.corpus else rel
+
+    def bank_file(self, rel: str) -> str:
+        return self.bank or rel
+
+    def resolve(self, recipe: "SceneRecipe") -> "SceneRecipe":
+        """The recipe with the files it names as paths on this machine."""
+        if not self.corpus and not self.bank:
+            return recipe
+        sources = tuple(replace(s, audio=self.clip(s.audio)) for s in recipe.sources)
+        bank = None if recipe.bank is None else replace(recipe.bank, path=self.bank_file(recipe.bank.path))
+        return replace(recipe, sources=sources, bank=bank)
+
+    def inputs(self, recipes) -> list[tuple[str, str]]:
+        """[(name as the plan says it, path here)] of every file ``recipes`` read, sorted."""
+        names = {s.audio for r in recipes for s in r.sources}
+        out = {(n, self.clip(n)) for n in names}
+        out |= {(r.bank.path, self.bank_file(r.bank.path)) for r in recipes if r.bank}
+        return sorted(out)
 
 
 def array_frame_position_at(recipe: SceneRecipe, s: Source, t) -> np.ndarray:

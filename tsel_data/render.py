@@ -26,7 +26,7 @@ from .choices import Spatial
 from .errors import AudioError, BankError
 from .geometry import CHANNEL_NAMES, cart_to_sph, frame_centres
 from .queries import Truth, decide
-from .recipe import SceneRecipe, array_frame_position_at
+from .recipe import BankRef, Roots, SceneRecipe, array_frame_position_at
 from .store.records import (LABEL_DECIMALS, ArrayRecord, LevelsRecord, RoomRecord, SceneRecord, SourceRecord,
                             label_list)
 from .store.writer import RenderedScene
@@ -174,7 +174,7 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
     return MixParts(active, images, gains, norm, levels, peak, mix, rt60_measured)
 
 
-def render_scene(recipe: SceneRecipe) -> RenderedScene:
+def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> RenderedScene:
     """Render one scene: its mixture, per-frame labels and record.
 
     Depends on nothing but the recipe and the files it names (clips, the RIR bank), so
@@ -183,6 +183,9 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
     Parameters
     ----------
     recipe : SceneRecipe
+    roots : Roots, optional
+        Where the recipe's relative file names are on this machine (a plan's recipes
+        name clips relative to the corpus); the record keeps the recipe's names.
 
     Returns
     -------
@@ -198,7 +201,8 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
         A source is silent in the part of its clip the scene uses.
     """
     fmt = recipe.array.format
-    parts = mix_parts(recipe)
+    files = (roots or Roots()).resolve(recipe)
+    parts = mix_parts(files)
     active, gains, norm, levels, peak, mix = parts.active, parts.gains, parts.norm, parts.levels, parts.peak, parts.mix
     rt60_measured = parts.rt60_measured
 
@@ -221,7 +225,7 @@ def render_scene(recipe: SceneRecipe) -> RenderedScene:
         margin = d.evidence["value"] if d.evidence else float("nan")
         qinfo = {"query_type": str(d.type), "query_relation": d.relation or "", "query_margin": margin,
                  "pairing": qp.pairing}
-    room, centre, yaw = _room_and_pose(recipe, rt60_measured)
+    room, centre, yaw = _room_and_pose(files, rt60_measured, recipe.bank)
     record = SceneRecord(
         scene_id=recipe.scene_id, split=recipe.split, index=recipe.index, seed=recipe.seed,
         scenario=recipe.scenario, query=query, motion="moving" if recipe.moving else "static",
@@ -271,16 +275,17 @@ def _bank(recipe: SceneRecipe):
     return open_bank_cached(recipe.bank.path, recipe.array.format)
 
 
-def _room_and_pose(recipe: SceneRecipe, rt60_measured) -> tuple[RoomRecord, list | None, float | None]:
+def _room_and_pose(recipe: SceneRecipe, rt60_measured, named: BankRef | None) -> tuple[RoomRecord, list | None, float | None]:
     """The room record, and the array's centre and yaw in the room: the recipe's, or for
     bank scenes what the bank says (simulated banks know the pose; measured ones do not:
-    None)."""
+    None). ``recipe`` names files as they are here; the record names the bank as the
+    plan does (``named``)."""
     if recipe.room is not None:
         room = RoomRecord(list(recipe.room.dims), recipe.room.rt60, rt60_measured)
         return room, list(recipe.array.centre), recipe.array.yaw
     info = _bank(recipe).room_info(recipe.bank.room)
     room = RoomRecord(info.get("dims", info.get("dimensions")), info.get("rt60"), None, recipe.bank.room,
-                      recipe.bank.path)
+                      named.path)
     arr = info.get("array") or {}
     if arr.get("centre") is None or arr.get("yaw") is None:
         return room, None, None

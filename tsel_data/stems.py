@@ -7,7 +7,8 @@ anti-clipping gain: the stems add up to the stored mixture). ``tsel inspect --wa
 writes them as headphone previews (:mod:`tsel_data.stereo`).
 
 This needs what rendering needs: the plan file and the clips (and the RIR bank) the
-recipe names, where they were when the dataset was made.
+recipe names, where the plan says they are (relative to the dataset folder), or where
+``corpus_dir`` and ``bank`` say.
 """
 from __future__ import annotations
 
@@ -16,12 +17,14 @@ import os
 import numpy as np
 
 from .audio import save_wav
+from .config import parse_config
 from .errors import DatasetError
-from .recipe import SceneRecipe
+from .plan import plan_roots
+from .recipe import Roots, SceneRecipe
 from .render import mix_parts
 from .stereo import stereo_preview
 from .store.layout import Layout
-from .store.plans import read_plan_lines
+from .store.plans import read_plan_lines, stored_config
 
 # The stored mixture and the one rendered again agree to float32 rounding; more means the
 # clips or the bank changed since the dataset was made.
@@ -42,22 +45,36 @@ def scene_recipe(root: str, split: str, index: int, scene_id: str) -> SceneRecip
     return recipe
 
 
-def render_stems(recipe: SceneRecipe, mixture: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+def dataset_roots(root: str, corpus_dir: str | None = None, bank: str | None = None) -> Roots:
+    """Where the files of a dataset's recipes are: as its plan says, or as given."""
+    layout = Layout(root)
+    raw = stored_config(layout)
+    if raw is None:
+        raise DatasetError(f"{root} has no readable plan ({layout.config_file}); the stems are rendered from the "
+                           f"scene's recipe")
+    raw = {**raw, "corpus": {**raw.get("corpus", {}), **({"dir": corpus_dir} if corpus_dir else {})},
+           "room": {**raw.get("room", {}), **({"bank": bank} if bank else {})}}
+    return plan_roots(parse_config(raw, where=layout.config_file, validate=False), layout)
+
+
+def render_stems(recipe: SceneRecipe, mixture: np.ndarray | None = None,
+                 roots: Roots | None = None) -> tuple[np.ndarray, bool]:
     """Every source alone, float32 [S, C, T], as it sounds in the scene; and whether
     their sum matches ``mixture`` (the stored audio, when given) within
-    :data:`MATCH_TOLERANCE`."""
-    parts = mix_parts(recipe)
+    :data:`MATCH_TOLERANCE`. ``roots``: where the recipe's files are."""
+    parts = mix_parts((roots or Roots()).resolve(recipe))
     stems = parts.stems()
     same = mixture is None or float(np.max(np.abs(parts.mix - mixture))) <= MATCH_TOLERANCE
     return stems, same
 
 
-def write_stems(root: str, scene, base: str) -> tuple[list[str], bool]:
+def write_stems(root: str, scene, base: str, corpus_dir: str | None = None,
+                bank: str | None = None) -> tuple[list[str], bool]:
     """Write a headphone preview of each source alone next to ``base`` (a WAV path):
     ``BASE.target.stereo.wav``, ``BASE.interferer1.stereo.wav``, ... Returns the paths
     and whether the stems match the stored mixture (False: the clips changed since)."""
     recipe = scene_recipe(root, scene.split, scene.index, scene.scene_id)
-    stems, same = render_stems(recipe, scene.audio)
+    stems, same = render_stems(recipe, scene.audio, dataset_roots(root, corpus_dir, bank))
     stem = os.path.splitext(base)[0]
     paths = []
     for k, src in enumerate(recipe.sources):

@@ -4,7 +4,7 @@ from __future__ import annotations
 import click
 
 from ..errors import TselError
-from .options import config_options, executor_options, load, worker_count
+from .options import config_options, executor_options, load, roots_options, worker_count
 
 
 @click.command("generate")
@@ -77,20 +77,22 @@ def _parse_range(text: str | None):
 @click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
 @click.option("--quiet", is_flag=True)
 @executor_options
-def render_cmd(out_dir, shards, workers, quiet, executor, scheduler):
+@roots_options
+def render_cmd(out_dir, shards, workers, quiet, executor, scheduler, corpus_dir, bank):
     """Render planned shards (skips complete ones), for job arrays."""
     from ..pipeline import render_shards
 
     done = render_shards(out_dir, _parse_range(shards), workers=worker_count(workers), progress=not quiet,
-                         executor=executor, scheduler=scheduler)
+                         executor=executor, scheduler=scheduler, corpus_dir=corpus_dir, bank=bank)
     click.echo("rendered " + ", ".join(f"{k} {v}" for k, v in done.items()) + " scenes")
 
 
 @click.command("finalize")
 @click.argument("out_dir", type=click.Path(file_okay=False))
-def finalize_cmd(out_dir):
+@roots_options
+def finalize_cmd(out_dir, corpus_dir, bank):
     """Check every shard against the plan and write dataset.json."""
     from ..pipeline import finalize
 
-    doc = finalize(out_dir)
+    doc = finalize(out_dir, corpus_dir, bank)
     click.echo("dataset.json written: " + ", ".join(f"{k} {v['scenes']}" for k, v in doc["splits"].items()))

@@ -1,7 +1,7 @@
 """``tsel inspect DIR SCENE``: describe one scene; optionally draw it and write its audio."""
 import click
 
-from .options import note_unfinished
+from .options import note_unfinished, roots_options
 
 
 @click.command("inspect")
@@ -15,7 +15,8 @@ from .options import note_unfinished
               "X.interferer1.stereo.wav, ...).")
 @click.option("--no-stems", is_flag=True, help="With --wav: not the per-source stems (they are rendered again from "
               "the recipe, which needs the clips).")
-def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems):
+@roots_options
+def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems, corpus_dir, bank):
     """Show SCENE of DATASET_DIR: a scene id (test-000003) or SPLIT/INDEX (test/3)."""
     from ..errors import TselError
     from ..inspect import inspect_scene, stereo_path  # h5py and matplotlib: only when inspect runs
@@ -31,7 +32,7 @@ def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems):
             from ..stems import write_stems  # rendering: scipy and the simulators load only here
 
             try:
-                paths, same = write_stems(dataset_dir, found, wav)
+                paths, same = write_stems(dataset_dir, found, wav, corpus_dir, bank)
             except TselError as e:
                 click.echo(f"note: no stems: {e}", err=True)
             else:

@@ -64,3 +64,11 @@ def note_unfinished(dataset_dir: str) -> None:
     note = dataset_doc(dataset_dir, unfinished=True).unfinished_note(dataset_dir)
     if note:
         click.echo(f"note: {note}", err=True)
+
+
+def roots_options(f):
+    """--corpus-dir and --bank for commands over a planned dataset: where its inputs are
+    now, when not where the plan says (the dataset or the corpus moved)."""
+    f = click.option("--bank", type=click.Path(), help="Where the RIR bank is now (default: where the plan says).")(f)
+    return click.option("--corpus-dir", type=click.Path(file_okay=False),
+                        help="Where the corpus is now (default: where the plan says, relative to the dataset).")(f)

@@ -75,7 +75,7 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
     if corpus_dir:
         layers.append(("--corpus-dir", {"corpus": {"dir": corpus_dir}}))
     if bank:
-        layers.append(("--bank", {"room": {"bank": os.path.abspath(os.path.expanduser(bank))}}))
+        layers.append(("--bank", {"room": {"bank": bank}}))
     if seed is not None:
         layers.append(("--seed", {"seed": seed}))
     for name, count in (splits or {}).items():

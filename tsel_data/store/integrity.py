@@ -31,32 +31,35 @@ def sha256_file(path: str) -> str:
     return h.hexdigest()
 
 
-def input_stats(paths) -> list:
-    """[(path, size, mtime_ns)] of every file read from ``paths`` (a folder: every file in
-    it, recursively), sorted; a missing path is listed with size -1."""
+def input_stats(inputs) -> list:
+    """[(name, size, mtime_ns)] of every file read from ``inputs`` ((name, path) pairs:
+    the name a plan gives a file, and where it is here; a folder: every file in it,
+    recursively, named below its name), sorted; a missing file is listed with size -1.
+    Names, not paths: a dataset and its corpus may move without their shards going stale."""
     out = set()
-    for p in set(paths):
+    for name, p in set(inputs):
         if os.path.isdir(p):
             for root, _, files in os.walk(p):
                 for f in files:
-                    out.add(_stat(os.path.join(root, f)))
+                    full = os.path.join(root, f)
+                    out.add(_stat(name + "/" + os.path.relpath(full, p).replace(os.sep, "/"), full))
         else:
-            out.add(_stat(p))
+            out.add(_stat(name, p))
     return sorted(out)
 
 
-def _stat(path: str) -> tuple:
+def _stat(name: str, path: str) -> tuple:
     try:
         st = os.stat(path)
     except OSError:
-        return (path, -1, 0)
-    return (path, st.st_size, st.st_mtime_ns)
+        return (name, -1, 0)
+    return (name, st.st_size, st.st_mtime_ns)
 
 
-def shard_fingerprint(recipe_lines, input_paths) -> str:
+def shard_fingerprint(recipe_lines, inputs) -> str:
     """sha256 of a shard's recipes (their JSON lines, in order) and of the files they read
-    as they are now (:func:`input_stats`)."""
-    doc = {"seal": SEAL_VERSION, "recipes": list(recipe_lines), "inputs": input_stats(input_paths)}
+    as they are now (:func:`input_stats` of (name, path) pairs)."""
+    doc = {"seal": SEAL_VERSION, "recipes": list(recipe_lines), "inputs": input_stats(inputs)}
     return hashlib.sha256(json.dumps(doc, separators=(",", ":")).encode("utf-8")).hexdigest()
 
 

@@ -60,6 +60,35 @@ def plan_doc(config: dict, clips: dict[str, int], bad_clips: int, missing_clips:
     return doc
 
 
+# config keys that name files outside the dataset (the roots of its relative paths)
+ROOT_KEYS = ("corpus.dir", "room.bank", "corpus.caption_embeddings")
+
+
+def _map_roots(config: dict, fn) -> dict:
+    out = {k: dict(v) if isinstance(v, dict) else v for k, v in config.items()}
+    for key in ROOT_KEYS:
+        sec, name = key.split(".")
+        value = (out.get(sec) or {}).get(name)
+        if isinstance(value, str) and value and not value.startswith("builtin:"):
+            out[sec][name] = fn(value)
+    return out
+
+
+def portable_roots(config: dict, root: str) -> dict:
+    """``config`` (plain data) with its roots (:data:`ROOT_KEYS`) relative to the dataset
+    folder ``root``, as files store them: a dataset moved together with its corpus needs
+    nothing, and no absolute path of the machine it was made on is written."""
+    base = os.path.abspath(root)
+    return _map_roots(config, lambda v: os.path.relpath(os.path.abspath(os.path.expanduser(v)), base)
+                      .replace(os.sep, "/"))
+
+
+def local_roots(config: dict, root: str) -> dict:
+    """The inverse of :func:`portable_roots`: roots as paths on this machine."""
+    base = os.path.abspath(root)
+    return _map_roots(config, lambda v: os.path.normpath(os.path.join(base, os.path.expanduser(v))))
+
+
 def has_plan(layout: Layout) -> bool:
     return os.path.isfile(layout.config_file)
 
@@ -82,10 +111,10 @@ def read_plan_doc(layout: Layout) -> dict:
 
 
 def stored_config(layout: Layout) -> dict | None:
-    """The config a folder was planned with (plain data), or None when it holds no
-    readable plan."""
+    """The config a folder was planned with (plain data, roots as paths here), or None
+    when it holds no readable plan."""
     try:
-        return read_plan_doc(layout)["config"] if has_plan(layout) else None
+        return local_roots(read_plan_doc(layout)["config"], layout.root) if has_plan(layout) else None
     except DatasetError:
         return None
 
@@ -102,6 +131,38 @@ def read_plan_lines(layout: Layout, split: str) -> list[str]:
         return []
     with open(path, encoding="utf-8") as f:
         return [line.rstrip("\n") for line in f if line.strip()]
+
+
+def read_plan_range(layout: Layout, split: str, start: int, stop: int, block: int = 1 << 22) -> list[str]:
+    """Lines ``start`` .. ``stop - 1`` of a split's plan file (fewer when the file is
+    shorter), read in blocks: a job-array task of a 100k-scene plan reads what it needs,
+    without holding or parsing the rest."""
+    out: list[str] = []
+    line, tail = 0, b""
+    try:
+        f = open(layout.plan_file(split), "rb")
+    except OSError as e:
+        raise DatasetError(f"{layout.plan_file(split)}: cannot read the plan ({e.strerror or e}); plan again into "
+                           f"a new --out") from None
+    with f:
+        while line < stop:
+            data = f.read(block)
+            if not data:
+                break
+            data = tail + data
+            cut = data.rfind(b"\n") + 1
+            whole, tail = data[:cut], data[cut:]
+            n = whole.count(b"\n")
+            if line + n <= start:  # nothing wanted in this block: count its lines only
+                line += n
+                continue
+            for raw in whole.split(b"\n")[:-1]:
+                if start <= line < stop:
+                    out.append(raw.decode("utf-8"))
+                line += 1
+        if tail.strip() and start <= line < stop:  # a last line without its newline
+            out.append(tail.decode("utf-8"))
+    return out
 
 
 def plan_ids(layout: Layout, split: str) -> list[str] | None:
