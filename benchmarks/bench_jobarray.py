@@ -27,7 +27,7 @@ sys.path.insert(0, REPO)
 CHILD = r"""
 import json, sys, time
 sys.path.insert(0, {repo!r})
-from tsel_data.pipeline import load_plan, load_plan_part, plan_config, plan_shard_tasks
+from tsel_data.shards import load_plan, load_plan_part, plan_config, plan_shard_tasks
 from tsel_data.store.layout import Layout
 out, which = {out!r}, {which!r}
 t0 = time.perf_counter()

@@ -112,7 +112,7 @@ RSS_CHILD = r"""
 import json, os, sys
 sys.path.insert(0, {repo!r})
 from tsel_data.executors import prepare_worker
-from tsel_data.pipeline import load_plan, plan_shard_tasks, render_shard
+from tsel_data.shards import load_plan, plan_shard_tasks, render_shard
 from tsel_data.plan import plan_roots
 from tsel_data.store.dataset import shard_attrs
 from tsel_data.store.layout import Layout

@@ -406,7 +406,7 @@ def _rss_bytes() -> int:
 @pytest.mark.slow
 @pytest.mark.skipif(not os.path.exists("/proc/self/statm"), reason="needs /proc")
 def test_soak_2000_scenes_memory_stays_flat(demo_corpus, tmp_path, monkeypatch):
-    import tsel_data.pipeline as gen
+    import tsel_data.shards as gen
 
     cfg = load_config(preset="demo", corpus_dir=demo_corpus, splits={"train": 2000, "val": 0, "test": 0},
                       overrides=["audio.duration=1.0", "audio.fs=8000", "output.shard_size=20",

@@ -11,35 +11,27 @@ Three stages a scheduler can run separately (``tsel plan``, ``tsel render --shar
   run resumes;
 - :func:`finalize` checks every shard against the plan and writes ``dataset.json`` last.
 
+The plan stage and the whole job live here; reading a plan back, rendering its shards and
+finalizing, in :mod:`tsel_data.shards` (re-exported: ``tsel_data.pipeline.render_shards``).
 Where each file goes is :class:`~tsel_data.store.layout.Layout`'s business.
 """
 from __future__ import annotations
 
 import os
 import shutil
-import sys
 import time
-
-import h5py
-from tqdm import tqdm
 
 from .atomic import write_error, write_json, write_lines
 from .catalog import write_bad_clips, write_missing_clips
-from .config import Config, Difference, config_differences, parse_config
-from .errors import AudioError, BankError, DatasetError
-from .executors import Runner
+from .config import Config, Difference, config_differences
+from .errors import DatasetError, TselError
 from .geometry import CHANNEL_NAMES
-from .h5str import as_strs
 from .plan import plan_roots, plan_split_json, prepare_views
-from .recipe import Roots, SceneRecipe
-from .render import render_scene
-from .store.dataset import ShardEntry, dataset_doc, shard_attrs
-from .store.integrity import read_seal, shard_fingerprint, shard_state
+from .shards import (PlanPart, expected_fingerprint, finalize, load_plan, load_plan_part,  # noqa: F401 (the job's API)
+                     plan_config, plan_shard_tasks, render_shard, render_shards)
 from .store.layout import Layout
 from .store.lock import DatasetLock
-from .store.plans import (ROOT_KEYS, ShardTask, has_plan, local_roots, plan_doc, portable_roots, read_plan_doc,
-                          read_plan_lines, read_plan_range, read_split_plan, shard_tasks, stored_config)
-from .store.writer import ShardWriter
+from .store.plans import ROOT_KEYS, has_plan, plan_doc, portable_roots, read_plan_doc, read_plan_lines, stored_config
 
 
 # --- plan ----------------------------------------------------------------------------------
@@ -279,266 +271,6 @@ def _grow(cfg: Config, layout: Layout, grown: dict[str, tuple[int, int]], worker
             raise write_error(os.path.relpath(path, layout.root), e, layout.root) from None
     _write_plan(cfg, layout, catalog, plans)
     return {split: len(lines) for split, lines in plans.items()}
-
-
-def load_plan(out_dir: str, corpus_dir: str | None = None, bank: str | None = None
-              ) -> tuple[Config, dict[str, list[SceneRecipe]]]:
-    """The stored config and every split's recipes.
-
-    Parameters
-    ----------
-    out_dir : str
-    corpus_dir, bank : str, optional
-        Where the corpus and the RIR bank are now, when not where the plan says (a
-        dataset or its inputs moved; a job array on another machine).
-
-    Returns
-    -------
-    (Config, dict)
-        The config ``plan/config.json`` holds (roots as paths here), and
-        {split: [SceneRecipe]} in plan order.
-    """
-    layout = Layout(out_dir)
-    cfg = plan_config(out_dir, corpus_dir, bank)
-    plans = {s: read_split_plan(layout, s) for s in cfg.splits}
-    for s, recipes in plans.items():
-        _check_count(layout, cfg, s, len(recipes))
-    return cfg, plans
-
-
-def plan_config(out_dir: str, corpus_dir: str | None = None, bank: str | None = None) -> Config:
-    """The config of a dataset's plan (roots as paths here, or as given: :func:`load_plan`)."""
-    layout = Layout(out_dir)
-    raw = local_roots(read_plan_doc(layout)["config"], layout.root)
-    if corpus_dir:
-        raw["corpus"] = {**raw.get("corpus", {}), "dir": os.path.abspath(os.path.expanduser(corpus_dir))}
-    if bank:
-        raw["room"] = {**raw.get("room", {}), "bank": os.path.abspath(os.path.expanduser(bank))}
-    return parse_config(raw, where=layout.config_file)
-
-
-def _check_count(layout: Layout, cfg: Config, split: str, have: int, wanted: int | None = None) -> None:
-    if have != (cfg.splits[split].count if wanted is None else wanted):
-        # plan files are written before plan/config.json: a grow interrupted in between
-        raise DatasetError(f"{layout.plan_file(split)} holds {'fewer than ' if wanted is not None else ''}"
-                           f"{cfg.splits[split].count if wanted is not None else have} scenes but "
-                           f"{layout.config_file} asks {cfg.splits[split].count}; the plan was interrupted: run the "
-                           f"same `tsel generate ... --grow` again")
-
-
-def plan_shard_tasks(cfg: Config) -> list[ShardTask]:
-    """Every shard of a plan (the scene counts are the config's)."""
-    return shard_tasks({s: sp.count for s, sp in cfg.splits.items()}, cfg.output.shard_size)
-
-
-class PlanPart:
-    """The recipes of scenes ``offset`` .. ``offset + len(recipes) - 1`` of a split;
-    sliced with the split's own scene indices."""
-
-    def __init__(self, offset: int = 0, recipes: list | None = None):
-        self.offset, self.recipes = offset, recipes or []
-
-    def __getitem__(self, s: slice) -> list[SceneRecipe]:
-        return self.recipes[s.start - self.offset:s.stop - self.offset]
-
-
-def load_plan_part(layout: Layout, cfg: Config, tasks: list[ShardTask]) -> dict[str, PlanPart]:
-    """{split: PlanPart} holding the recipes of ``tasks`` only (every split of the plan is
-    a key): what a job-array task reads of a large plan."""
-    parts = {}
-    for split in cfg.splits:
-        mine = [t for t in tasks if t.split == split]
-        if not mine:
-            parts[split] = PlanPart()
-            continue
-        start, stop = min(t.start for t in mine), max(t.stop for t in mine)
-        lines = read_plan_range(layout, split, start, stop)
-        if len(lines) != stop - start:
-            _check_count(layout, cfg, split, start + len(lines), wanted=stop)
-        parts[split] = PlanPart(start, [_recipe(layout, split, start + k, line) for k, line in enumerate(lines)])
-    return parts
-
-
-def _recipe(layout: Layout, split: str, index: int, line: str) -> SceneRecipe:
-    try:
-        return SceneRecipe.from_json(line)
-    except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
-        raise DatasetError(f"{layout.plan_file(split)}:{index + 1}: damaged scene recipe ({type(e).__name__}: "
-                           f"{str(e)[:80]}); plan again into a new --out") from None
-
-
-# --- render ----------------------------------------------------------------------------------
-
-
-def expected_fingerprint(recipes: list[SceneRecipe], roots: Roots) -> str:
-    """The fingerprint a shard of these recipes must carry, with its inputs (clips, RIR
-    bank) as they are now."""
-    return shard_fingerprint([r.to_json() for r in recipes], roots.inputs(recipes))
-
-
-def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attrs: dict, roots: Roots) -> int:
-    """Render one shard's recipes and write the shard, sealed with what it was made from;
-    returns its scene count."""
-    fingerprint = expected_fingerprint(recipes, roots)  # before reading anything: a clip changed meanwhile is stale
-    with ShardWriter(out_dir, task.split, task.shard, len(recipes), attrs, fingerprint) as w:
-        for r in recipes:  # one scene's audio in memory at a time
-            w.add(render_scene(r, roots))
-    return len(recipes)
-
-
-def _render_task(args) -> tuple[ShardTask, int, str]:
-    """One shard; a bad input met only now (a clip or an RIR the checks let through) is
-    reported, not raised, so the other shards go on."""
-    out_dir, task, recipes, attrs, roots = args
-    try:
-        return task, render_shard(out_dir, task, recipes, attrs, roots), ""
-    except (AudioError, BankError) as e:
-        return task, 0, str(e)
-
-
-def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, progress: bool = True,
-                  executor: str = "local", scheduler: str | None = None, corpus_dir: str | None = None,
-                  bank: str | None = None) -> dict:
-    """Render the plan's shards; complete shards are skipped.
-
-    A shard counts as complete only when its seal matches the plan and its files
-    (store/integrity.py): shards of another plan, made from clips that changed since, or
-    damaged, are rendered again (and said so on stderr).
-
-    Parameters
-    ----------
-    out_dir : str
-        A planned dataset folder.
-    shards : range, optional
-        Indices into the plan's global shard list (split by split, in order); all if None.
-    workers : int
-        Processes (or Dask workers for ``dask-local``).
-    progress : bool
-        A progress bar per split.
-    executor : str
-        ``local`` | ``dask`` | ``dask-local`` (executors.py).
-    scheduler : str, optional
-        The Dask scheduler's address for ``dask``.
-    corpus_dir, bank : str, optional
-        Where the corpus and the bank are, when not where the plan says (:func:`load_plan`).
-
-    Returns
-    -------
-    dict
-        {split: scenes rendered now}.
-
-    Raises
-    ------
-    DatasetError
-        Shards that could not be rendered (bad clips or RIRs found only now: the first is
-        named; the others were rendered), or another process is planning the folder.
-    """
-    out_dir = os.path.abspath(out_dir)  # dask workers may run elsewhere on a shared filesystem
-    layout = Layout(out_dir)
-    cfg = plan_config(out_dir, corpus_dir, bank)  # a plan is written last by its planner: complete, or absent
-    roots = plan_roots(cfg, layout)
-    with DatasetLock(layout, exclusive=False, what="render it"):
-        tasks = plan_shard_tasks(cfg)
-        if shards is not None:
-            if shards.stop > len(tasks):
-                raise DatasetError(f"shard range {shards.start}-{shards.stop - 1} is outside the plan's "
-                                   f"{len(tasks)} shards (0-{len(tasks) - 1})")
-            tasks = [tasks[i] for i in shards]
-        plans = load_plan_part(layout, cfg, tasks)  # only the recipes of these shards
-        todo, redo = [], []
-        for t in tasks:
-            state, why = shard_state(layout, t.split, t.shard,
-                                     expected_fingerprint(plans[t.split][t.start:t.stop], roots))
-            if state != "complete":
-                todo.append(t)
-                if state in ("stale", "damaged"):
-                    redo.append(f"{t.files[0]} ({why})")
-        if redo:
-            print(f"rendering {len(redo)} shard(s) again that do not verify, e.g. {redo[0]}", file=sys.stderr)
-        return _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler, roots)
-
-
-def _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler, roots) -> dict:
-    attrs = shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio)
-    done: dict[str, int] = {s: 0 for s in plans}
-    failed: list[str] = []
-    with Runner(executor, workers if len(todo) > 1 else 1, scheduler) as runner:
-        # split by split, so each split gets its own progress bar and rate
-        for split in plans:
-            jobs = [(out_dir, t, plans[t.split][t.start:t.stop], attrs, roots) for t in todo if t.split == split]
-            total = sum(t.stop - t.start for t in tasks if t.split == split)
-            if not total:
-                continue
-            bar = _bar(split, total, total - sum(j[1].stop - j[1].start for j in jobs), progress)
-            for t, n, problem in runner.map_unordered(_render_task, jobs):
-                done[t.split] += n
-                bar.update(n)
-                if problem:
-                    failed.append(f"{t.files[0]}: {problem}")
-            bar.close()
-    if failed:
-        raise DatasetError(f"{len(failed)} shard(s) could not be rendered (the others were), e.g. {failed[0]}; fix the "
-                           f"input and rerun with --resume (shards that read a changed clip are rendered again)")
-    return done
-
-
-def _bar(split: str, total: int, initial: int, progress: bool):
-    return tqdm(total=total, initial=initial, desc=f"{split:>5}", unit="scene", disable=not progress,
-                dynamic_ncols=True, mininterval=1.0)
-
-
-# --- finalize ----------------------------------------------------------------------------------
-
-
-def finalize(out_dir: str, corpus_dir: str | None = None, bank: str | None = None) -> dict:
-    """Check every shard against the plan and write ``dataset.json`` (atomically, last).
-
-    ``corpus_dir``, ``bank``: where the inputs are, when not where the plan says.
-
-    Returns
-    -------
-    dict
-        The ``dataset.json`` document.
-
-    Raises
-    ------
-    DatasetError
-        A shard is missing, does not verify (another plan, changed inputs, damaged
-        files), or holds other scenes than the plan puts there.
-    """
-    layout = Layout(out_dir)
-    cfg, plans = load_plan(out_dir, corpus_dir, bank)
-    roots = plan_roots(cfg, layout)
-    with DatasetLock(layout, exclusive=True, what="finalize it"):
-        entries: dict[str, list] = {split: [] for split in plans}  # config order
-        missing, bad = [], []
-        for task in plan_shard_tasks(cfg):
-            recipes = plans[task.split][task.start:task.stop]
-            state, why = shard_state(layout, task.split, task.shard, expected_fingerprint(recipes, roots), deep=True)
-            if state == "missing":
-                missing.append(task.files[0])
-                continue
-            if state != "complete":
-                bad.append(f"{task.files[0]}: {why}")
-                continue
-            want = [r.scene_id for r in recipes]
-            with h5py.File(layout.path(task.files[0]), "r") as h:
-                got = as_strs(h["scene_id"][()])
-            if got != want:  # a sealed shard of this plan holds its scenes; this guards the seal itself
-                bad.append(f"{task.files[0]}: holds scenes other than the planned {want[0]}..{want[-1]}")
-                continue
-            seal = read_seal(layout, task.split, task.shard)
-            entries[task.split].append(ShardEntry(*task.files, len(want), seal.h5.sha256, seal.json.sha256))
-        if bad:
-            raise DatasetError(f"{len(bad)} shard(s) do not verify, e.g. {bad[0]}; run `tsel render {out_dir}` (or "
-                               f"`tsel generate ... --resume`) to render them again")
-        if missing:
-            raise DatasetError(f"{len(missing)} shard(s) not rendered yet, e.g. {missing[0]}; "
-                               f"run `tsel render {out_dir}` (or `tsel generate ... --resume`) first")
-        doc = dataset_doc(portable_roots(cfg.to_dict(), out_dir), cfg.seed,
-                          shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio), entries)
-        write_json(layout.dataset_file, doc)
-        return doc
 
 
 def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, progress: bool = True,

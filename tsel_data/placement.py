@@ -1,0 +1,251 @@
+"""Where a scene's sources and array go: in a simulated room (static, along a line, an arc
+or a circle) or on a bank room's measured positions and trajectories.
+
+:func:`place` and :func:`place_bank` are the planner's geometry (:mod:`tsel_data.plan`
+draws everything else). Each draws from the scene's generator only, so a scene's
+placement depends on (seed, split, index) alone. A source's distance, height, motion,
+path kind and speed are drawn once (:class:`_Want`) and kept while the geometry is retried.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .banks.paths import sample_bank_path, sample_bank_point
+from .banks.scenes import open_bank_cached, split_rooms
+from .choices import Motion, Spatial
+from .config import Config
+from .errors import GeometryError
+from .geometry import ArrayPose, Room, frame_centres, interpolate_positions, wrap_azimuth
+from .recipe import BankRef, BankWalk
+
+MAX_TRIES = 200
+
+@dataclass(frozen=True)
+class _Want:
+    """What a directional source must be, drawn once per scene and kept through every
+    retry of the geometry: redrawing one of these alone when a layout does not fit would
+    bias its distribution toward what fits (short distances, slow speeds)."""
+
+    distance: float  # m from the array centre
+    height: float  # m above the floor
+    moving: bool
+    kind: str = ""  # PathKind, for a moving source
+    speed: float = 0.0  # °/s great-circle, for a moving source
+
+    def describe(self) -> str:
+        motion = f"a {self.kind} path at {self.speed:g}°/s (scene.speed), " if self.moving else ""
+        return f"{motion}{self.distance:.2f} m from the array (sources.distance), {self.height:.2f} m high"
+
+
+def _wants(cfg: Config, rng, spatial: list[str]) -> list[_Want | None]:
+    out = []
+    for sp in spatial:
+        if sp != Spatial.DIRECTIONAL:
+            out.append(None)
+            continue
+        d, h = float(cfg.sources.distance.sample(rng)), float(cfg.sources.height.sample(rng))
+        mv = _moves(cfg, rng)
+        kind = str(cfg.scene.path.sample(rng)) if mv else ""
+        speed = float(cfg.scene.speed.sample(rng)) if mv else 0.0
+        out.append(_Want(d, h, mv, kind, speed))
+    return out
+
+
+ROOM_TRIES, CENTRE_TRIES, AZIMUTH_TRIES = 10, 10, 50
+
+
+def place(cfg: Config, rng, spatial: list[str], split: str, index: int):
+    """Room, array pose and each source's placement (Source fields; None for additive).
+
+    Each directional source's distance, height, motion, path kind and speed are drawn
+    first and kept; what is retried until the sources fit (inside the walls' margins,
+    ``scene.min_separation`` apart) is the rest of the geometry: the source's azimuth and
+    path (direction, time of closest approach), the array's place, and the room. So the
+    configured distributions are what the dataset holds, and a setting the rooms cannot
+    hold is an error that names it.
+    """
+    rc, ac = cfg.room, cfg.array
+    fmt = cfg.scene.format
+    wants = _wants(cfg, rng, spatial)
+    for _ in range(ROOM_TRIES):
+        dims = (float(rc.length.sample(rng)), float(rc.width.sample(rng)), float(rc.height.sample(rng)))
+        room = Room(tuple(round(d, 4) for d in dims), round(float(rc.rt60.sample(rng)), 4))
+        side = round(float(ac.side.sample(rng)), 5) if fmt == "mic4" else None
+        yaw = round(float(ac.yaw.sample(rng)), 4)
+        for _ in range(CENTRE_TRIES):
+            centre = (
+                float(rng.uniform(ac.wall_margin, room.dims[0] - ac.wall_margin)),
+                float(rng.uniform(ac.wall_margin, room.dims[1] - ac.wall_margin)),
+                float(min(ac.height.sample(rng), room.dims[2] - 0.1)),
+            )
+            centre = tuple(round(c, 5) for c in centre)
+            places = _place_sources(cfg, rng, wants, room, centre, yaw)
+            if places is not None:
+                return room, ArrayPose(fmt, centre, yaw, side), places
+    shown = "; ".join(f"source {k}: {w.describe()}" for k, w in enumerate(wants) if w is not None)
+    raise GeometryError(
+        f"scene {split}/{index}: could not place its sources ({shown}), {cfg.scene.min_separation}° apart "
+        f"(scene.min_separation), in {ROOM_TRIES} rooms drawn from room.length/width/height; lower "
+        f"scene.min_separation{_separation_hint(spatial)} or the settings named, lower the wall margins, or "
+        f"enlarge the rooms"
+    )
+
+
+def _separation_hint(spatial: list[str]) -> str:
+    """What scene.min_separation can be for these sources: k directional sources fit at
+    most 360°/k apart, and placement draws azimuths at random, so it needs a margin."""
+    k = sum(sp == Spatial.DIRECTIONAL for sp in spatial)
+    return f" (at most {360 / k:g}° is possible for {k} directional sources, random placement needs less)" if k > 1 \
+        else ""
+
+
+def _moves(cfg: Config, rng) -> bool:
+    m = cfg.scene.motion
+    return m == Motion.MOVING or (m == Motion.MIXED and bool(rng.random() < cfg.scene.moving_fraction))
+
+
+def _frame_centres(cfg: Config) -> np.ndarray:
+    a = cfg.audio
+    return frame_centres(int(round(a.duration / a.label_hop)), a.label_hop)
+
+
+def _separated(az: np.ndarray, placed: list[np.ndarray], sc) -> bool:
+    """Whether azimuth track ``az`` [F] keeps ``sc.min_separation`` from every placed track
+    on at least ``sc.separated_frames`` of the label frames.
+
+    Static sources are separated on every frame or none; a moving source may cross
+    another one (at 40°/s a 10 s walk goes all the way round) for the rest.
+    """
+    for p in placed:
+        d = np.abs(wrap_azimuth(az - p))
+        if np.mean(d >= sc.min_separation) < sc.separated_frames - 1e-9:
+            return False
+    return True
+
+
+def _place_sources(cfg, rng, wants: list, room: Room, centre, yaw):
+    """Every source's place for this room and array position, or None when one does not
+    fit (the caller then draws another position or room)."""
+    m = cfg.sources.wall_margin
+    dims = room.dims
+    fc = _frame_centres(cfg)
+    placed: list[np.ndarray] = []  # azimuth track of each directional source at the label frames
+    out = []
+    for w in wants:
+        if w is None:
+            out.append(None)
+            continue
+        dz = w.height - centre[2]
+        if abs(dz) >= w.distance or not m <= w.height <= dims[2] - m:
+            return None  # no azimuth helps: this array height (or room) cannot hold it
+        r_h = math.sqrt(w.distance ** 2 - dz * dz)
+        for _ in range(AZIMUTH_TRIES):
+            az = float(rng.uniform(-180.0, 180.0))
+            if w.moving:
+                place = _moving_path(cfg, rng, room, centre, yaw, az, r_h, w, fc)
+                if place is None:
+                    continue
+                track = place.pop("_track")
+            else:
+                # array frame -> room frame by hand: numpy per point is slower than the maths
+                a = math.radians(az + yaw)
+                p = (centre[0] + r_h * math.cos(a), centre[1] + r_h * math.sin(a), w.height)
+                if not all(m <= p[k] <= dims[k] - m for k in range(3)):
+                    continue
+                place = {"position": tuple(round(v, 6) for v in p)}
+                track = np.full(len(fc), az)
+            if _separated(track, placed, cfg.scene):
+                placed.append(track)
+                out.append(place)
+                break
+        else:
+            return None
+    return out
+
+
+# A moving source's RIRs are computed at least every 100 ms and every 4 degrees.
+KNOT_HOP_S, KNOT_STEP_DEG = 0.1, 4.0
+
+
+def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want: "_Want", fc: np.ndarray):
+    """A simulated moving source at constant height, or None if it leaves the room:
+    ``{"path": ((t, x, y, z), ...) room frame, "_track": azimuth (array frame) at the label frames}``.
+
+    ω = ``scene.speed`` is the angular speed seen from the array (great-circle °/s, as
+    for bank walks). ``arc``: around the array at horizontal distance r_h (distance d),
+    so the azimuth turns at ω·d/r_h. ``line``: a straight pass, perpendicular to azimuth
+    az0 at horizontal distance r_h when closest (at a time drawn over the clip), at the
+    speed v = ω·d that sweeps ω °/s there, the fastest it gets; the azimuth then turns at
+    most ω·d/r_h. Knots every min(100 ms, 4° / that azimuth rate): a knot at least every
+    100 ms and every 4° of azimuth.
+    """
+    kind, speed, d, h = want.kind, want.speed, want.distance, want.height
+    direction = 1 if rng.random() < 0.5 else -1
+    dur = cfg.audio.duration
+    az_rate = speed * d / r_h  # °/s of azimuth: the arc's, and the line's at its closest
+    hop = min(KNOT_HOP_S, KNOT_STEP_DEG / az_rate) if speed > 0 else dur
+    t = np.arange(0.0, dur + hop - 1e-9, hop)
+    if kind == "arc":  # PathKind.ARC
+        a = np.radians(az0 + yaw + direction * az_rate * t)
+        x, y = centre[0] + r_h * np.cos(a), centre[1] + r_h * np.sin(a)
+        track = az0 + direction * az_rate * fc
+    else:
+        t_close = float(rng.uniform(0.0, dur))
+        a0 = math.radians(az0 + yaw)
+        v = math.radians(speed) * d
+        s = direction * v * (t - t_close)  # signed distance along the line from the closest point
+        x = centre[0] + r_h * math.cos(a0) - s * math.sin(a0)
+        y = centre[1] + r_h * math.sin(a0) + s * math.cos(a0)
+        track = az0 + direction * np.degrees(np.arctan2(v * (fc - t_close), r_h))
+    m = cfg.sources.wall_margin
+    if (x.min() < m or y.min() < m or x.max() > room.dims[0] - m or y.max() > room.dims[1] - m
+            or not m <= h <= room.dims[2] - m):
+        return None
+    path = tuple((round(float(ti), 6), round(float(xi), 6), round(float(yi), 6), round(h, 6))
+                 for ti, xi, yi in zip(t, x, y))
+    return {"path": path, "_track": track}
+
+
+# --- RIR-bank scenes ----------------------------------------------------------------------
+
+
+def place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, bank_path: str):
+    """A bank room for the split, the bank's array, and each source's walk or point:
+    (None, ArrayPose, [{"bank": BankWalk} or None per source], BankRef)."""
+    bank = open_bank_cached(bank_path, cfg.scene.format)
+    rooms = split_rooms(bank, cfg.rooms_by_split(), split)
+    room_name = rooms[int(rng.integers(len(rooms)))]
+    info = bank.room_info(room_name)
+    side = (info.get("array") or {}).get("side") if bank.format == "mic4" else None
+    array = ArrayPose(bank.format, (0.0, 0.0, 0.0), 0.0, side)
+    fc = _frame_centres(cfg)
+    placed: list[np.ndarray] = []
+    out = []
+    for sp in spatial:
+        if sp != Spatial.DIRECTIONAL:
+            out.append(None)
+            continue
+        mv = _moves(cfg, rng)
+        speed = float(cfg.scene.speed.sample(rng)) if mv else 0.0  # kept through the retries (see _Want)
+        for _ in range(MAX_TRIES // 4):
+            if mv:
+                tid, idx, times = sample_bank_path(bank, room_name, rng, cfg.audio.duration, speed,
+                                                   knot_hop=KNOT_HOP_S)
+            else:
+                tid, i0 = sample_bank_point(bank, room_name, rng)
+                idx, times = np.array([i0]), np.array([0.0])
+            pos = bank.trajectory(room_name, tid).positions[idx]
+            track = interpolate_positions(times, pos, fc)[:, 0]
+            if _separated(track, placed, cfg.scene):
+                placed.append(track)
+                out.append({"bank": BankWalk(
+                    room_name, tid, tuple(int(v) for v in idx), tuple(round(float(v), 6) for v in times),
+                    tuple(tuple(round(float(v), 4) for v in p) for p in pos))})
+                break
+        else:
+            raise GeometryError(f"scene {split}/{index}: could not place sources {cfg.scene.min_separation}° apart "
+                                f"in bank room {room_name}; lower scene.min_separation{_separation_hint(spatial)}")
+    return None, array, out, BankRef(bank_path, room_name)

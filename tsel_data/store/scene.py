@@ -1,0 +1,68 @@
+"""One scene as a trainer sees it: what the reader returns (and the on-the-fly source)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import azimuth_difference, frame_centres
+from .records import SceneRecord
+
+@dataclass
+class Scene:
+    """One scene as a trainer sees it.
+
+    audio:         float32 [C, T] (None when read with ``audio=False``).
+    azimuth, elevation: float32 [S, F] degrees, array frame; NaN where a source has no
+                   position (additive sources). distance: float32 [S, F] metres.
+    active:        bool [S, F]. Source 0 is the target. S is this scene's own source
+                   count (shard padding removed).
+    mic_positions: float32 [C, 3] metres, array frame (FOA: zeros).
+    record:        the scene's :class:`~tsel_data.store.records.SceneRecord` (room,
+                   array pose, clips, captions, levels, seed), or None when read with
+                   ``load_records=False``.
+    query_type:    ``caption``, ``relational`` or ``composite``; query_relation: the
+                   relation stated (None for a caption); pairing: ``random``, ``hard``,
+                   ``easy``, ``same-kind`` or ``mixed`` (docs/queries.md). Datasets made
+                   with default query settings read as ``caption`` / ``random``.
+    """
+
+    scene_id: str
+    split: str
+    index: int
+    query: str
+    audio: np.ndarray | None
+    azimuth: np.ndarray
+    elevation: np.ndarray
+    distance: np.ndarray
+    active: np.ndarray
+    mic_positions: np.ndarray
+    fs: int
+    label_hop: float
+    format: str
+    record: SceneRecord | None = None
+    query_type: str = "caption"
+    query_relation: str | None = None
+    pairing: str = "random"
+
+    @property
+    def n_sources(self) -> int:
+        return int(self.azimuth.shape[0])
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.azimuth.shape[1])
+
+    @property
+    def target_moving(self) -> bool:
+        """Whether the target's azimuth changes over the scene (the record's flag if there
+        is a record, else more than 0.5° of change in the labels)."""
+        if self.record is not None and self.record.sources:
+            return self.record.sources[0].moving
+        az = self.azimuth[0]
+        ok = np.isfinite(az)
+        return bool(ok.any() and np.max(azimuth_difference(az[ok], az[ok][0])) > 0.5)
+
+    def frame_times(self) -> np.ndarray:
+        """Centre time (s) of each label frame, [F]."""
+        return frame_centres(self.n_frames, self.label_hop)
