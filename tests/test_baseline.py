@@ -107,7 +107,7 @@ def test_mic4_symmetries_turn_features_and_labels_together(t):
     xs = FeatureConfig(spatial="xspec")
     turned = augment.apply(scene_features(fake_scene(plane_wave_mic4(az)), xs), t)
     truth = scene_features(fake_scene(plane_wave_mic4(float(t.azimuth(az)))), xs)
-    assert turned["xspec"].shape == (6, 10, 32, 2) and np.allclose(turned["xspec"], truth["xspec"], atol=1e-4)
+    assert turned["xspec"].shape == (6, 10, 48, 2) and np.allclose(turned["xspec"], truth["xspec"], atol=1e-4)
 
 
 def test_foa_rotation_matches_a_rotated_source():
