@@ -85,7 +85,7 @@ SETTINGS = [
     Setting("2 dir, xspec + log-mel + text (SelectNet)", "2dir", ("xspec", "mel"), epochs=12),
     Setting("2 dir, same model, queries shuffled across test scenes (control)", "2dir", ("xspec", "mel"),
             control_of="2 dir, xspec + log-mel + text (SelectNet)"),
-    Setting("2 dir, moving (demo-moving bank, FOA, frame-level): intensity vectors + log-mel + text (SelectNet)",
+    Setting("2 dir, moving (demo-moving bank, FOA, frame-level), intensity vectors + log-mel + text (SelectNet)",
             "moving", ("iv", "mel"), output="frame", epochs=12),
 ]
 
@@ -99,7 +99,7 @@ PAPER_SETTINGS = [
             fusion="concat"),
     Setting("2 dir, paper's concat model, queries shuffled across test scenes (control)", "2dir", ("gcc", "mel"),
             fusion="concat", control_of="2 dir, GCC-PHAT + log-mel + text (paper's concat model)"),
-    Setting("2 dir, moving (demo-moving bank, FOA, frame-level): intensity vectors + log-mel + text "
+    Setting("2 dir, moving (demo-moving bank, FOA, frame-level), intensity vectors + log-mel + text "
             "(paper's model, frame head)", "moving", ("iv", "mel"), output="frame", epochs=20, fusion="concat"),
 ]
 
