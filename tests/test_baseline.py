@@ -318,3 +318,18 @@ def test_feature_table_round_trip(tiny_dataset, tmp_path):
     assert again.scene_ids == table.scene_ids and again.captions == table.captions
     assert np.array_equal(again[1]["features"]["gcc"], live["features"]["gcc"])
     assert np.array_equal(again[1]["azimuth"], live["azimuth"], equal_nan=True)
+
+
+def test_experiment_rows_read_the_features_made_for_them():
+    from tsel_baseline.experiment import DATASETS, MODELS, feature_config
+
+    for rows in MODELS.values():
+        labels = {s.label for s in rows if not s.control_of}
+        assert len({s.tag for s in rows}) == len(rows)
+        assert all(s.control_of in labels for s in rows if s.control_of)
+        for s in rows:
+            assert s.dataset in DATASETS
+            spatial = feature_config(rows, s.dataset).resolve("foa" if "iv" in s.inputs else "mic4")
+            assert set(s.inputs) - {"mel"} <= set(spatial)
+    assert feature_config(MODELS["select"], "2dir").spatial == "xspec"
+    assert feature_config(MODELS["paper"], "2dir").spatial == "gcc"
