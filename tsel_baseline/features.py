@@ -16,6 +16,9 @@ What the model sees of a scene (F = label frames, 100 for a 10 s scene at 0.1 s 
   channels are coincident, so GCC-PHAT between them peaks at lag 0 and keeps only a
   sign (the front/back or left/right half-plane); the intensity vector points at the
   source. It is also exactly rotatable (see :mod:`tsel_baseline.augment`).
+- ``xspec`` float32 [P, F, B, 2]: the normalised cross-spectrum of every mic pair per
+  band (:func:`xspec_features`): a direction per band, so that a model can localise
+  only the bands of the queried sound (SelectNet's spatial input on mic arrays).
 
 Pooling to label frames (rather than keeping the 376 STFT frames) makes the features
 4x smaller and lines them up with the labels, so a frame-level head predicts one
@@ -202,8 +205,9 @@ def xspec_features(spec: np.ndarray, fb: np.ndarray, pool: np.ndarray) -> np.nda
 def scene_features(scene, cfg: FeatureConfig = FeatureConfig()) -> dict:
     """Features of one :class:`tsel_data.reader.Scene` (needs its audio).
 
-    Returns ``{"mel": [F, n_mels], "gcc": [P, F, L]}`` for microphone arrays or
-    ``{"mel": ..., "iv": [3, F, n_mels]}`` for FOA (see the module docstring), float32.
+    Returns ``{"mel": [F, n_mels]}`` and the spatial features of ``cfg.spatial``:
+    ``"gcc"`` [P, F, L] and/or ``"xspec"`` [P, F, B, 2] for microphone arrays,
+    ``"iv"`` [3, F, n_mels] for FOA (see the module docstring), float32.
     """
     if scene.audio is None:
         raise ValueError(f"scene {scene.scene_id} was read without audio; read it with audio=True")
