@@ -46,8 +46,9 @@ $(BASELINE_STAMP): $(STAMP)
 
 # Train the baseline on the demo corpus and print the table of docs/baseline.md (optional
 # extra: torch and the MiniLM encoder; `make demo` and `make test` never need them).
+BASELINE_OUT ?= baseline-out
 baseline: $(BASELINE_STAMP)
-	$(BIN)/python -m tsel_baseline.experiment --out baseline-out
+	$(BIN)/python -m tsel_baseline.experiment --out $(BASELINE_OUT)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_simulated.py
@@ -55,4 +56,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_scaling.py
 
 clean:
-	rm -rf $(DEMO_OUT) $(DEMO_MOVING_OUT) baseline-out .pytest_cache
+	rm -rf $(DEMO_OUT) $(DEMO_MOVING_OUT) $(BASELINE_OUT) .pytest_cache

@@ -12,8 +12,8 @@ from tsel_data.reader import Scene  # noqa: E402
 
 from tsel_baseline import augment  # noqa: E402
 from tsel_baseline.data import FeatureTable, SceneFeatures, example_list, precompute  # noqa: E402
-from tsel_baseline.features import FeatureConfig, crop_lags, pool_matrix, scene_features  # noqa: E402
-from tsel_baseline.model import ModelConfig, TselNet, decode  # noqa: E402
+from tsel_baseline.features import FeatureConfig, band_filters, crop_lags, pool_matrix, scene_features  # noqa: E402
+from tsel_baseline.model import ModelConfig, SelectNet, TselNet, build_model, decode  # noqa: E402
 from tsel_baseline.predict import predict, score, shuffled_queries  # noqa: E402
 from tsel_baseline.text import (BowEncoder, PrecomputedEncoder, load_caption_vectors,  # noqa: E402
                                 save_caption_vectors, tokenize)
@@ -90,6 +90,38 @@ def test_gcc_refuses_an_array_wider_than_the_kept_lags():
         crop_lags(np.zeros((6, 3, 96)), 60)
 
 
+def band_limited(az_deg, lo, hi, seed):
+    """A plane wave of noise band-limited to [lo, hi] Hz."""
+    x = plane_wave_mic4(az_deg, seed=seed)
+    spec = np.fft.rfft(x, axis=-1)
+    f = np.fft.rfftfreq(x.shape[-1], 1 / FS)
+    spec[:, (f < lo) | (f > hi)] = 0
+    return np.fft.irfft(spec, x.shape[-1], axis=-1).astype(np.float32)
+
+
+def test_xspec_keeps_each_band_with_its_own_direction():
+    # two sounds at once in different bands: each band's phase is the delay of the sound in
+    # it (GCC-PHAT would show both delays with nothing to say which band made which)
+    xs = FeatureConfig(spatial="xspec")
+    low, high = band_limited(40.0, 200, 900, 1), band_limited(-110.0, 1500, 3500, 2)
+    mix = scene_features(fake_scene(low + high), xs)["xspec"].mean(axis=1)       # [P, B, 2]
+    alone = {"low": scene_features(fake_scene(low), xs)["xspec"].mean(axis=1),
+             "high": scene_features(fake_scene(high), xs)["xspec"].mean(axis=1)}
+    phase = lambda x: np.angle(x[..., 0] + 1j * x[..., 1])  # noqa: E731
+    cfg = FeatureConfig()
+    fb = band_filters(FS, cfg.n_fft, cfg.xspec_bands, cfg.fmin, cfg.xspec_fmax)
+    edges = np.array([np.flatnonzero(b)[[0, -1]] for b in fb]) * FS / cfg.n_fft   # [B, (lowest, highest) Hz]
+    inside = {"low": (edges[:, 0] >= 250) & (edges[:, 1] <= 850),
+              "high": (edges[:, 0] >= 1550) & (edges[:, 1] <= 3450)}
+    assert inside["low"].sum() >= 5 and inside["high"].sum() >= 5
+    for name, bands in inside.items():
+        d = np.angle(np.exp(1j * (phase(mix[:, bands]) - phase(alone[name][:, bands]))))
+        assert np.abs(d).max() < 0.1  # radians: the mixture's band phase is that sound's delay
+        assert (np.linalg.norm(mix[:, bands], axis=-1) > 0.9).all()  # one plane wave per band
+        other = alone["high" if name == "low" else "low"]
+        assert np.abs(np.angle(np.exp(1j * (phase(mix[:, bands]) - phase(other[:, bands]))))).max() > 0.3
+
+
 def test_intensity_vectors_need_foa():
     with pytest.raises(ValueError, match="FOA"):
         scene_features(fake_scene(plane_wave_mic4(0.0)), FeatureConfig(spatial="iv"))
@@ -107,7 +139,7 @@ def test_mic4_symmetries_turn_features_and_labels_together(t):
     xs = FeatureConfig(spatial="xspec")
     turned = augment.apply(scene_features(fake_scene(plane_wave_mic4(az)), xs), t)
     truth = scene_features(fake_scene(plane_wave_mic4(float(t.azimuth(az)))), xs)
-    assert turned["xspec"].shape == (6, 10, 32, 2) and np.allclose(turned["xspec"], truth["xspec"], atol=1e-4)
+    assert turned["xspec"].shape == (6, 10, 48, 2) and np.allclose(turned["xspec"], truth["xspec"], atol=1e-4)
 
 
 def test_foa_rotation_matches_a_rotated_source():
@@ -206,6 +238,28 @@ def test_model_output_shapes():
         TselNet(ModelConfig(inputs=("iv",)), shapes, text_in=5)
 
 
+@pytest.mark.parametrize("spatial,shape", [("xspec", (6, 10, 48, 2)), ("iv", (3, 10, 64))])
+def test_select_model_outputs_and_text_conditioning(spatial, shape):
+    shapes = {spatial: shape, "mel": (10, 64)}
+    torch.manual_seed(0)
+    feats = {spatial: torch.randn(2, *shape), "mel": torch.randn(2, 10, 64)}
+    clip = build_model(ModelConfig(inputs=(spatial, "mel"), fusion="select"), shapes, text_in=5).eval()
+    frame = build_model(ModelConfig(inputs=(spatial, "mel"), output="frame", fusion="select"), shapes, text_in=5)
+    assert isinstance(clip, SelectNet)
+    out = clip.outputs(feats, torch.zeros(2, 5))
+    assert out["logits"].shape == (2, 360) and out["activity"].shape == (2, 10)
+    assert out["mask"].shape == (2, 10, shape[2])  # one weight per frame and band
+    assert ((out["mask"] > 0) & (out["mask"] < 1)).all()
+    assert frame.eval()(feats, torch.zeros(2, 5)).shape == (2, 10, 360)
+    # the text acts on the frames before pooling: another query, another mask
+    other = clip.outputs(feats, torch.eye(5)[:2] * 3)
+    assert not torch.allclose(out["mask"], other["mask"])
+    with pytest.raises(ValueError, match="one of"):
+        build_model(ModelConfig(inputs=("gcc", "mel"), fusion="select"), {"gcc": (6, 10, 49), "mel": (10, 64)}, 5)
+    with pytest.raises(ValueError, match="fusion"):
+        build_model(ModelConfig(inputs=("gcc",), fusion="sum"), {"gcc": (6, 10, 49)}, 5)
+
+
 def test_shuffled_queries_never_keep_their_own():
     q = [f"q{i}" for i in range(20)]
     s = shuffled_queries(q, seed=1)
@@ -227,16 +281,19 @@ def tiny_dataset(demo_corpus, tmp_path_factory):
     return out
 
 
-@pytest.mark.parametrize("output", ["clip", "frame"])
-def test_tiny_training_predicts_and_scores(tiny_dataset, tmp_path, output):
+@pytest.mark.parametrize("fusion,output", [("concat", "clip"), ("concat", "frame"), ("select", "clip"),
+                                           ("select", "frame")])
+def test_tiny_training_predicts_and_scores(tiny_dataset, tmp_path, fusion, output):
     import tsel_data
     from tsel_baseline.experiment import text_for
 
-    train = precompute(tsel_data.open_dataset(tiny_dataset, "train"), workers=0, log=None)
+    spatial = "gcc" if fusion == "concat" else "xspec"
+    fcfg = FeatureConfig(spatial=spatial)
+    train = precompute(tsel_data.open_dataset(tiny_dataset, "train"), fcfg, workers=0, log=None)
     assert len(example_list(train, all_sources=True)) == 12  # both directional sources of 6 scenes
-    test = SceneFeatures(tsel_data.open_dataset(tiny_dataset, "test"))  # straight from scenes, no table
+    test = SceneFeatures(tsel_data.open_dataset(tiny_dataset, "test"), fcfg)  # straight from scenes, no table
     text = text_for(train, "bow")
-    model, history = fit(ModelConfig(inputs=("gcc", "mel"), output=output, hidden=16, text_dim=8),
+    model, history = fit(ModelConfig(inputs=(spatial, "mel"), output=output, hidden=16, text_dim=8, fusion=fusion),
                          TrainConfig(epochs=2, batch_size=4, threads=1), train, text,
                          validate=lambda m: score(predict(m, test, text), tiny_dataset, "test",
                                                   str(tmp_path / "val.jsonl")).overall["mae"], log=None)
@@ -261,3 +318,18 @@ def test_feature_table_round_trip(tiny_dataset, tmp_path):
     assert again.scene_ids == table.scene_ids and again.captions == table.captions
     assert np.array_equal(again[1]["features"]["gcc"], live["features"]["gcc"])
     assert np.array_equal(again[1]["azimuth"], live["azimuth"], equal_nan=True)
+
+
+def test_experiment_rows_read_the_features_made_for_them():
+    from tsel_baseline.experiment import DATASETS, MODELS, feature_config
+
+    for rows in MODELS.values():
+        labels = {s.label for s in rows if not s.control_of}
+        assert len({s.tag for s in rows}) == len(rows)
+        assert all(s.control_of in labels for s in rows if s.control_of)
+        for s in rows:
+            assert s.dataset in DATASETS
+            spatial = feature_config(rows, s.dataset).resolve("foa" if "iv" in s.inputs else "mic4")
+            assert set(s.inputs) - {"mel"} <= set(spatial)
+    assert feature_config(MODELS["select"], "2dir").spatial == "xspec"
+    assert feature_config(MODELS["paper"], "2dir").spatial == "gcc"

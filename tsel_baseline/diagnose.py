@@ -11,7 +11,8 @@ clip units) by
 - whether the target and the interferer are the *same sound type* (then no query can
   tell them apart: the scene is unanswerable), and
 - the (target, interferer) temporal kinds: two continuous sounds overlap all the time,
-  so only the spectrum (which GCC-PHAT whitens away) says which direction is which.
+  so only the spectrum (which GCC-PHAT whitens away) says which direction is which;
+- the target's sound type (narrow-band sounds give a direction in few bands).
 
 It also counts same-type scenes in every split of every dataset.
 """
@@ -61,6 +62,7 @@ def breakdown(row: dict, root: str, kinds: dict) -> dict:
             continue
         groups["same type" if k[0][0] == k[1][0] else "different types"].append(s["error"])
         groups[f"target {k[0][1]}, interferer {k[1][1]}"].append(s["error"])
+        groups[f"target type: {k[0][0]}"].append(s["error"])
     return {g: (len(v), float(np.mean(v))) for g, v in sorted(groups.items())}
 
 

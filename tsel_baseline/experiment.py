@@ -21,6 +21,8 @@ import json  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
+import multiprocessing  # noqa: E402
+from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -28,7 +30,7 @@ import torch  # noqa: E402
 
 import tsel_data  # noqa: E402
 
-from .data import precompute  # noqa: E402
+from .data import FeatureTable, precompute  # noqa: E402
 from .features import FeatureConfig  # noqa: E402
 from .model import ModelConfig  # noqa: E402
 from .predict import predict, score, shuffled_queries  # noqa: E402
@@ -48,34 +50,69 @@ class DatasetSpec:
 
 
 DATASETS = {
-    "1dir+1add": DatasetSpec("paper-sim-1dir-1add", {"train": 800, "val": 100, "test": 300}),
-    "2dir": DatasetSpec("paper-sim-2dir", {"train": 1600, "val": 160, "test": 320}),
+    "1dir+1add": DatasetSpec("paper-sim-1dir-1add", {"train": 600, "val": 60, "test": 200}),
+    "2dir": DatasetSpec("paper-sim-2dir", {"train": 1200, "val": 120, "test": 240}),
     # every source moves (the preset's default mixes static and moving ones)
-    "moving": DatasetSpec("demo-moving", {"train": 800, "val": 80, "test": 160},
+    "moving": DatasetSpec("demo-moving", {"train": 600, "val": 60, "test": 160},
                           ['scene.motion="moving"', "output.shard_size=128"]),
+    # the same bank, rooms and counts with every source still: what motion itself costs
+    "static-bank": DatasetSpec("demo-moving", {"train": 600, "val": 60, "test": 160},
+                               ['scene.motion="static"', "output.shard_size=128"]),
 }
 
 
 @dataclass
 class Setting:
-    """One row of the table: which dataset, which features, which head, shuffled queries or not."""
+    """One row of the table: which dataset, which model and features, which head, shuffled queries or not."""
 
     label: str
     dataset: str
     inputs: tuple
     output: str = "clip"
     epochs: int = 30
+    fusion: str = "select"
     control_of: str | None = None  # label of the trained row whose model this control reuses
+    extra: bool = False  # run only when its dataset is named with --only (not in `make baseline`)
+
+    @property
+    def tag(self) -> str:
+        return f"{self.dataset}-{self.fusion}-{'-'.join(self.inputs)}" + ("-shuffled" if self.control_of else "")
 
 
+# The rows `make baseline` reports: SelectNet (tsel_baseline.model), whose text picks the
+# frames and bands to localise before anything is pooled. The cross-spectrum per band
+# (xspec) replaces GCC-PHAT on mic4: GCC-PHAT sums all bands, so with two sources it shows
+# two delays and nothing says which belongs to which sound.
 SETTINGS = [
-    Setting("1 dir + 1 add, GCC-PHAT + text", "1dir+1add", ("gcc",), epochs=30),
-    Setting("2 dir, GCC-PHAT + text", "2dir", ("gcc",), epochs=24),
-    Setting("2 dir, GCC-PHAT + log-mel + text", "2dir", ("gcc", "mel"), epochs=24),
-    Setting("2 dir, same model, queries shuffled across test scenes (control)", "2dir", ("gcc", "mel"),
-            control_of="2 dir, GCC-PHAT + log-mel + text"),
-    Setting("2 dir, moving (demo-moving bank, frame-level)", "moving", ("iv", "mel"), output="frame", epochs=20),
+    Setting("1 dir + 1 add, xspec + log-mel + text (SelectNet)", "1dir+1add", ("xspec", "mel"), epochs=12),
+    Setting("2 dir, xspec + text (SelectNet, no log-mel)", "2dir", ("xspec",), epochs=12),
+    Setting("2 dir, xspec + log-mel + text (SelectNet)", "2dir", ("xspec", "mel"), epochs=12),
+    Setting("2 dir, same model, queries shuffled across test scenes (control)", "2dir", ("xspec", "mel"),
+            control_of="2 dir, xspec + log-mel + text (SelectNet)"),
+    Setting("2 dir, moving (demo-moving bank, FOA, frame-level), intensity vectors + log-mel + text (SelectNet)",
+            "moving", ("iv", "mel"), output="frame", epochs=12),
+    # a check of the moving row, `--only static-bank`: same model, bank and rooms, sources
+    # still. tsel eval scores a static target once per scene (the circular mean of the
+    # frame predictions over its active frames), so its unit differs from the moving row's.
+    Setting("2 dir, static (demo-moving bank, FOA, frame-level model), intensity vectors + log-mel + text "
+            "(SelectNet)", "static-bank", ("iv", "mel"), output="frame", epochs=12, extra=True),
 ]
+
+# The paper's model (TselNet: clip-level concatenation of audio and text embeddings) on
+# the paper's features; `--model paper`. Kept to show what the selection model changes.
+PAPER_SETTINGS = [
+    Setting("1 dir + 1 add, GCC-PHAT + text (paper's concat model)", "1dir+1add", ("gcc",), epochs=30,
+            fusion="concat"),
+    Setting("2 dir, GCC-PHAT + text (paper's concat model)", "2dir", ("gcc",), epochs=24, fusion="concat"),
+    Setting("2 dir, GCC-PHAT + log-mel + text (paper's concat model)", "2dir", ("gcc", "mel"), epochs=24,
+            fusion="concat"),
+    Setting("2 dir, paper's concat model, queries shuffled across test scenes (control)", "2dir", ("gcc", "mel"),
+            fusion="concat", control_of="2 dir, GCC-PHAT + log-mel + text (paper's concat model)"),
+    Setting("2 dir, moving (demo-moving bank, FOA, frame-level), intensity vectors + log-mel + text "
+            "(paper's model, frame head)", "moving", ("iv", "mel"), output="frame", epochs=20, fusion="concat"),
+]
+
+MODELS = {"select": SETTINGS, "paper": PAPER_SETTINGS}
 
 
 def tsel(*args: str) -> None:
@@ -132,16 +169,64 @@ def text_for(train_source, name: str, npz: str | None = None) -> CachedText:
     return CachedText(enc)
 
 
+def feature_config(settings: list[Setting], dataset: str) -> FeatureConfig:
+    """The features every row on ``dataset`` reads, computed together from one STFT."""
+    spatial = sorted({n for s in settings if s.dataset == dataset for n in s.inputs if n != "mel"})
+    return FeatureConfig(spatial="+".join(spatial) if spatial else "auto")
+
+
+def train_row(job: dict) -> list[dict]:
+    """Train one row's model, predict and score its test split, and the controls that reuse
+    the model. Runs in its own process when rows train side by side (``jobs`` > 1)."""
+    set_threads(job["threads"])
+    setting, out, name = job["setting"], job["out"], job["setting"].dataset
+    tag = setting.tag
+    log = job.get("log") or (lambda msg: print(f"[{tag}] {msg}", flush=True))
+    t = time.time()
+    tables = {split: FeatureTable.load(path) for split, path in job["tables"].items()}
+    root = job["root"]
+    text = text_for(tables["train"], job["text"], job["text_npz"])
+
+    def validate(m):
+        preds = predict(m, tables["val"], text)
+        return score(preds, root, "val", os.path.join(out, "predictions", f"{tag}-val.jsonl")).overall["mae"]
+
+    log(f"== {setting.label}")
+    model, history = fit(ModelConfig(inputs=setting.inputs, output=setting.output, fusion=setting.fusion,
+                                     pool_frames=2 if setting.fusion == "concat" and setting.output == "clip" else 1),
+                         TrainConfig(epochs=setting.epochs, seed=job["seed"], all_sources=True, augment=True,
+                                     threads=job["threads"]),
+                         tables["train"], text, validate=validate, log=log)
+    torch.save({"model_config": model.cfg.to_dict(), "state_dict": model.state_dict(),
+                "text": text.encoder.state()}, os.path.join(out, "models", f"{tag}.pt"))
+    rows = []
+    for s in [setting, *job["controls"]]:
+        queries = shuffled_queries(tables["test"].queries, job["seed"]) if s.control_of else None
+        path = os.path.join(out, "predictions", f"{s.tag}-test.jsonl")
+        result = score(predict(model, tables["test"], text, queries=queries), root, "test", path)
+        row = {"setting": s.label, "dataset": name, "model": s.fusion, "inputs": list(s.inputs), "output": s.output,
+               "text": job["text"], "mae": result.overall["mae"], "acc10": result.overall["acc10"],
+               "acc5": result.overall["acc5"], "acc20": result.overall["acc20"], "units": result.overall["units"],
+               "predictions": path, "seconds": time.time() - t, "history": [] if s.control_of else history,
+               "per_scene": result.per_scene}
+        with open(os.path.join(out, "rows", f"{s.tag}.json"), "w") as f:
+            json.dump(row, f, indent=1)
+        log(f"   {s.label}: test MAE {row['mae']:.2f}°, acc@10 {100 * row['acc10']:.1f}%  ({row['seconds']:.0f} s)")
+        rows.append(row)
+    return rows
+
+
 def run(out: str, text_name: str = "bow", text_npz: str | None = None, workers: int = 2, seed: int = 0,
-        only: list[str] | None = None, log=None) -> list[dict]:
+        only: list[str] | None = None, model: str = "select", jobs: int = 2, log=None) -> list[dict]:
     log = log or (lambda msg: print(msg, flush=True))
     t_start = time.time()
-    threads = set_threads(0)
-    log(f"tsel-baseline experiment in {out} ({threads} torch threads, {workers} workers)")
-    os.makedirs(os.path.join(out, "predictions"), exist_ok=True)
-    os.makedirs(os.path.join(out, "features"), exist_ok=True)
-    os.makedirs(os.path.join(out, "rows"), exist_ok=True)
-    settings = [s for s in SETTINGS if not only or s.dataset in only]
+    cores = set_threads(0)
+    jobs = max(1, min(jobs, cores))
+    log(f"tsel-baseline experiment in {out} ({cores} cores, {workers} workers, {jobs} models trained at once)")
+    for d in ("predictions", "features", "rows", "models"):
+        os.makedirs(os.path.join(out, d), exist_ok=True)
+    all_settings = MODELS[model]
+    settings = [s for s in all_settings if (s.dataset in only if only else not s.extra)]
     needed = sorted({s.dataset for s in settings}, key=list(DATASETS).index)
     timings = {}
 
@@ -152,69 +237,49 @@ def run(out: str, text_name: str = "bow", text_npz: str | None = None, workers: 
     log(f"datasets ready ({timings['data']:.0f} s)")
 
     t = time.time()
-    fcfg = FeatureConfig()
-    tables = {(name, split): precompute(tsel_data.open_dataset(roots[name], split), fcfg, workers=workers,
-                                        cache=os.path.join(out, "features", f"{name}-{split}.npz"), log=log)
-              for name in needed for split in ("train", "val", "test")}
+    paths = {}
+    for name in needed:
+        fcfg = feature_config(settings, name)
+        for split in ("train", "val", "test"):
+            path = os.path.join(out, "features", f"{name}-{fcfg.spatial}-{split}.npz")
+            precompute(tsel_data.open_dataset(roots[name], split), fcfg, workers=workers, cache=path, log=log)
+            paths[name, split] = path
     timings["features"] = time.time() - t
     log(f"features ready ({timings['features']:.0f} s)")
 
-    rows, models, texts = [], {}, {}
-    for s in settings:
-        t = time.time()
-        name = s.dataset
-        if name not in texts:
-            texts[name] = text_for(tables[name, "train"], text_name, text_npz)
-        text = texts[name]
-        tag = s.label.split(",")[0].replace(" ", "") + "-" + "-".join(s.inputs) + ("-shuffled" if s.control_of else "")
-        test = tables[name, "test"]
-        queries = None
-        if s.control_of:
-            model = models[s.control_of]
-            queries = shuffled_queries(test.queries, seed)
-            history = []
-        else:
-            log(f"== {s.label}")
-
-            def validate(m, _name=name, _tag=tag):
-                preds = predict(m, tables[_name, "val"], text)
-                return score(preds, roots[_name], "val", os.path.join(out, "predictions", f"{_tag}-val.jsonl")).overall["mae"]
-
-            model, history = fit(ModelConfig(inputs=s.inputs, output=s.output,
-                                             pool_frames=2 if s.output == "clip" else 1),
-                                 TrainConfig(epochs=s.epochs, seed=seed, all_sources=True, augment=True),
-                                 tables[name, "train"], text, validate=validate, log=log)
-            models[s.label] = model
-            os.makedirs(os.path.join(out, "models"), exist_ok=True)
-            torch.save({"model_config": model.cfg.to_dict(), "state_dict": model.state_dict(),
-                        "text": text.encoder.state()}, os.path.join(out, "models", f"{tag}.pt"))
-        path = os.path.join(out, "predictions", f"{tag}-test.jsonl")
-        result = score(predict(model, test, text, queries=queries), roots[name], "test", path)
-        row = {"setting": s.label, "dataset": name, "inputs": list(s.inputs), "output": s.output,
-               "text": text_name, "mae": result.overall["mae"], "acc10": result.overall["acc10"],
-               "acc5": result.overall["acc5"], "acc20": result.overall["acc20"], "units": result.overall["units"],
-               "predictions": path, "seconds": time.time() - t, "history": history,
-               "per_scene": result.per_scene}
-        rows.append(row)
-        with open(os.path.join(out, "rows", f"{tag}.json"), "w") as f:
-            json.dump(row, f, indent=1)
-        log(f"   test MAE {row['mae']:.2f}°, acc@10 {100 * row['acc10']:.1f}%  ({row['seconds']:.0f} s)")
+    # Rows train side by side, one process and one thread each: these small models use a
+    # second thread poorly (measured: 2 threads no faster than 1 on 2 cores), a second
+    # process well. Longest first, so the lanes end together.
+    t = time.time()
+    trained = [s for s in settings if not s.control_of]
+    trained.sort(key=lambda s: -s.epochs * DATASETS[s.dataset].splits["train"] * (3 if s.output == "frame" else 1))
+    todo = [{"setting": s, "controls": [c for c in settings if c.control_of == s.label], "out": out,
+             "root": roots[s.dataset], "tables": {sp: paths[s.dataset, sp] for sp in ("train", "val", "test")},
+             "text": text_name, "text_npz": text_npz, "seed": seed, "threads": max(1, cores // jobs)}
+            for s in trained]
+    if jobs == 1:
+        rows = [r for job in todo for r in train_row(dict(job, log=log))]
+    else:
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            rows = [r for rs in pool.map(train_row, todo) for r in rs]
+    timings["training"] = time.time() - t
     timings["total"] = time.time() - t_start
-    # the table shows every row measured in OUT so far (a run with --only adds its own)
+    # the table shows every row of this model measured in OUT so far (a run with --only adds its own)
     done = {}
     for fn in sorted(os.listdir(os.path.join(out, "rows"))):
         with open(os.path.join(out, "rows", fn)) as f:
             r = json.load(f)
         done[r["setting"]] = r
-    table = format_table([done[s.label] for s in SETTINGS if s.label in done])
-    log("\n" + table + f"\n\nwall time {timings['total'] / 60:.1f} min "
-        f"(data {timings['data']:.0f} s, features {timings['features']:.0f} s)")
-    with open(os.path.join(out, "table.md"), "w") as f:
+    table = format_table([done[s.label] for s in all_settings if s.label in done])
+    log("\n" + table + f"\n\nwall time {timings['total'] / 60:.1f} min (data {timings['data']:.0f} s, "
+        f"features {timings['features']:.0f} s, training {timings['training']:.0f} s)")
+    suffix = ("" if model == "select" else f"-{model}") + ("" if not only else "-" + "-".join(only))
+    with open(os.path.join(out, f"table{suffix}.md"), "w") as f:
         f.write(table + "\n")
-    with open(os.path.join(out, "results.json" if not only else f"results-{'-'.join(only)}.json"), "w") as f:
-        json.dump({"rows": rows, "only": only, "timings": timings, "text": text_name, "seed": seed,
+    with open(os.path.join(out, f"results{suffix}.json"), "w") as f:
+        json.dump({"rows": rows, "model": model, "only": only, "timings": timings, "text": text_name, "seed": seed,
                    "datasets": {k: vars(v) for k, v in DATASETS.items()}, "corpus_clips": CORPUS_CLIPS,
-                   "features": fcfg.to_dict()}, f, indent=1)
+                   "features": {name: feature_config(settings, name).to_dict() for name in needed}}, f, indent=1)
     return rows
 
 
@@ -232,8 +297,11 @@ def main(argv=None) -> None:
     ap.add_argument("--workers", type=int, default=2, help="processes for rendering and features")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--only", action="append", choices=list(DATASETS), help="run only the rows of this dataset")
+    ap.add_argument("--model", default="select", choices=list(MODELS),
+                    help="select: SelectNet (the table of docs/baseline.md); paper: the paper's concat model")
+    ap.add_argument("--jobs", type=int, default=2, help="models trained at once (one process each)")
     a = ap.parse_args(argv)
-    run(a.out, a.text, a.text_npz, a.workers, a.seed, a.only)
+    run(a.out, a.text, a.text_npz, a.workers, a.seed, a.only, a.model, a.jobs)
 
 
 if __name__ == "__main__":

@@ -16,6 +16,9 @@ What the model sees of a scene (F = label frames, 100 for a 10 s scene at 0.1 s 
   channels are coincident, so GCC-PHAT between them peaks at lag 0 and keeps only a
   sign (the front/back or left/right half-plane); the intensity vector points at the
   source. It is also exactly rotatable (see :mod:`tsel_baseline.augment`).
+- ``xspec`` float32 [P, F, B, 2]: the normalised cross-spectrum of every mic pair per
+  band (:func:`xspec_features`): a direction per band, so that a model can localise
+  only the bands of the queried sound (SelectNet's spatial input on mic arrays).
 
 Pooling to label frames (rather than keeping the 376 STFT frames) makes the features
 4x smaller and lines them up with the labels, so a frame-level head predicts one
@@ -31,7 +34,9 @@ from tsel_data.features import gcc_phat, mic_pairs, stft
 
 SPEED_OF_SOUND = 343.0  # m/s
 FOA_CHANNELS = ("W", "Y", "Z", "X")  # ACN order (docs/format.md)
-XSPEC_BANDS = 32  # mel bands of the cross-spectrum features
+
+
+SPATIAL = ("gcc", "iv", "xspec")
 
 
 @dataclass(frozen=True)
@@ -39,11 +44,13 @@ class FeatureConfig:
     """How features are computed. The defaults are the paper's STFT and GCC settings.
 
     spatial:  "gcc" (GCC-PHAT of every pair), "iv" (FOA intensity vectors), "xspec"
-              (the PHAT cross-spectrum of every pair per mel band) or "auto" (gcc for
-              microphone arrays, iv for FOA).
+              (the normalised cross-spectrum of every pair per band), several joined by
+              "+" (e.g. "gcc+xspec": computed from one STFT, cached together), or "auto"
+              (gcc for microphone arrays, iv for FOA).
     n_fft, hop: STFT size and hop, samples (paper: 1024, 640).
     n_lags:   lags of the paper's GCC-PHAT (96); max_lag: lags kept either side of 0.
-    n_mels, fmin, fmax: mel bands and their range, Hz (fmax 0 means fs/2).
+    n_mels, fmin, fmax: log-mel bands and their range, Hz (fmax 0 means fs/2).
+    xspec_bands, xspec_fmax: bands of the cross-spectrum (mel-spaced from fmin), their top, Hz.
     """
 
     spatial: str = "auto"
@@ -54,16 +61,20 @@ class FeatureConfig:
     n_mels: int = 64
     fmin: float = 50.0
     fmax: float = 0.0
+    xspec_bands: int = 48
+    xspec_fmax: float = 4000.0
 
-    def resolve(self, fmt: str) -> str:
-        """The spatial feature used for an array format ("mic4", "foa", "tetra")."""
+    def resolve(self, fmt: str) -> list[str]:
+        """The spatial features computed for an array format ("mic4", "foa", "tetra")."""
         if self.spatial == "auto":
-            return "iv" if fmt == "foa" else "gcc"
-        if self.spatial not in ("gcc", "iv", "xspec"):
-            raise ValueError(f"spatial feature must be 'gcc', 'iv', 'xspec' or 'auto', got {self.spatial!r}")
-        if self.spatial == "iv" and fmt != "foa":
+            return ["iv" if fmt == "foa" else "gcc"]
+        names = self.spatial.split("+")
+        bad = [n for n in names if n not in SPATIAL]
+        if bad or len(set(names)) != len(names):
+            raise ValueError(f"spatial features are 'gcc', 'iv', 'xspec' (joined by '+') or 'auto', got {self.spatial!r}")
+        if "iv" in names and fmt != "foa":
             raise ValueError(f"intensity vectors need FOA audio; this dataset is {fmt!r} (use spatial='gcc')")
-        return self.spatial
+        return names
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -156,29 +167,47 @@ def intensity_features(spec: np.ndarray, fb: np.ndarray, pool: np.ndarray) -> np
     return (num / (den[None] + 1e-10)).astype(np.float32)
 
 
-def xspec_features(spec: np.ndarray, fb: np.ndarray, pool: np.ndarray) -> np.ndarray:
-    """PHAT-weighted cross-spectrum of every pair per mel band: STFT [C, frames, bins] ->
-    float32 [P, F, n_mels, 2] (real, imaginary), each value in the unit disc.
+def band_filters(fs: int, n_fft: int, n_bands: int, fmin: float, fmax: float) -> np.ndarray:
+    """Triangular mel bands normalised to sum 1 over their bins: float32 [n_bands, n_fft // 2 + 1]."""
+    fb = mel_filterbank(fs, n_fft, n_bands, fmin, fmax)
+    return fb / np.maximum(fb.sum(axis=1, keepdims=True), 1e-9)
 
-    GCC-PHAT is the inverse FFT of ``X_i X_j* / |X_i X_j*|`` summed over *all*
-    frequencies, so when two sources sound at once it shows both delays with nothing to
-    say which delay sits in which band. Averaging the same normalised cross-spectrum
-    within mel bands instead keeps that: the phase of band b is the delay of whatever
-    dominates band b, and the log-mel says what dominates it.
+
+def xspec_features(spec: np.ndarray, fb: np.ndarray, pool: np.ndarray) -> np.ndarray:
+    """Normalised cross-spectrum of every mic pair per band and label frame: STFT
+    [C, frames, bins] -> float32 [P, F, B, 2] (real, imaginary), each value in the unit disc.
+
+    For pair (i, j), band b and label frame f: ``Σ X_i X_j* / Σ |X_i X_j*|``, both sums
+    over the STFT frames of f and the bins of b (weighted by the band's filter). Its
+    phase is the delay between the two mics of whatever dominates the cell; its length
+    says how dominant (1: one plane wave; near 0: several directions, or reverberation).
+
+    Why not GCC-PHAT: GCC-PHAT is the inverse FFT of the same normalised cross-spectrum
+    summed over *all* frequencies, so when two sources sound at once it shows both
+    delays with nothing to say which delay came from which band. Kept per band, the
+    direction stays tied to the spectrum, and a model can localise only the bands (and
+    frames) that the query's sound occupies. Bands are kept narrow enough (fmax ~4 kHz)
+    that the phase hardly turns across one band at the array's largest delay, so
+    averaging within a band does not cancel it.
+
+    Sums, not means of per-bin ratios: loud bins, where the direct sound is, weigh more.
     """
     i, j = np.array(mic_pairs(spec.shape[0])).T
-    cross = spec[i] * np.conj(spec[j])
-    phat = cross / (np.abs(cross) + 1e-12)                                         # [P, frames, bins]
-    w = fb / np.maximum(fb.sum(axis=1, keepdims=True), 1e-9)                      # band averages
-    band = (pool.astype(np.complex64) @ phat) @ w.T.astype(np.complex64)           # complex [P, F, M]
+    keep = np.flatnonzero(fb.any(axis=0))                                          # bins inside the bands
+    s, w = spec[..., keep], fb[:, keep].T.astype(np.float32)                       # [C, frames, K], [K, B]
+    cross = s[i] * np.conj(s[j])                                                   # [P, frames, K]
+    num = pool @ (cross.real @ w) + 1j * (pool @ (cross.imag @ w))                # [P, F, B]
+    den = pool @ (np.abs(cross) @ w)
+    band = num / (den + 1e-12)
     return np.stack([band.real, band.imag], axis=-1).astype(np.float32)
 
 
 def scene_features(scene, cfg: FeatureConfig = FeatureConfig()) -> dict:
     """Features of one :class:`tsel_data.reader.Scene` (needs its audio).
 
-    Returns ``{"mel": [F, n_mels], "gcc": [P, F, L]}`` for microphone arrays or
-    ``{"mel": ..., "iv": [3, F, n_mels]}`` for FOA (see the module docstring), float32.
+    Returns ``{"mel": [F, n_mels]}`` and the spatial features of ``cfg.spatial``:
+    ``"gcc"`` [P, F, L] and/or ``"xspec"`` [P, F, B, 2] for microphone arrays,
+    ``"iv"`` [3, F, n_mels] for FOA (see the module docstring), float32.
     """
     if scene.audio is None:
         raise ValueError(f"scene {scene.scene_id} was read without audio; read it with audio=True")
@@ -188,11 +217,12 @@ def scene_features(scene, cfg: FeatureConfig = FeatureConfig()) -> dict:
     fb = mel_filterbank(scene.fs, cfg.n_fft, cfg.n_mels, cfg.fmin, cfg.fmax)
     spec = stft(scene.audio, cfg.n_fft, cfg.hop)
     out = {"mel": mel_features(spec, fb, pool)}
-    if spatial == "gcc":
+    if "gcc" in spatial:
         out["gcc"] = gcc_features(scene.audio, scene.fs, scene.mic_positions, pool, cfg)
-    elif spatial == "xspec":
-        out["xspec"] = xspec_features(spec, mel_filterbank(scene.fs, cfg.n_fft, XSPEC_BANDS, cfg.fmin, cfg.fmax), pool)
-    else:
+    if "xspec" in spatial:
+        bands = band_filters(scene.fs, cfg.n_fft, cfg.xspec_bands, cfg.fmin, min(cfg.xspec_fmax, scene.fs / 2))
+        out["xspec"] = xspec_features(spec, bands, pool)
+    if "iv" in spatial:
         if scene.audio.shape[0] != 4:
             raise ValueError(f"intensity vectors need 4 FOA channels {FOA_CHANNELS}, got {scene.audio.shape[0]}")
         out["iv"] = intensity_features(spec, fb, pool)

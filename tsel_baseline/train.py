@@ -22,7 +22,7 @@ import torch
 from tsel_data.labels import gaussian_target
 
 from .data import Examples, FeatureTable, example_list
-from .model import ModelConfig, TselNet
+from .model import ModelConfig, build_model, pool_frames
 
 
 @dataclass
@@ -40,6 +40,7 @@ class TrainConfig:
     all_sources: bool = True
     seed: int = 0
     threads: int = 0
+    activity_weight: float = 0.5  # auxiliary loss of models that say when the queried sound is on (SelectNet)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -67,15 +68,25 @@ def batch_features(batch: dict, inputs) -> dict:
     return {name: batch[f"feat_{name}"] for name in inputs}
 
 
-def loss_on_batch(model: TselNet, batch: dict, sigma: float) -> torch.Tensor:
-    logits = model(batch_features(batch, model.cfg.inputs), batch["text"])
+def loss_on_batch(model, batch: dict, sigma: float, activity_weight: float = 0.0) -> torch.Tensor:
+    """Soft-label cross-entropy of the azimuth, plus (for models with an ``activity``
+    output) ``activity_weight`` times the binary cross-entropy of "is the queried source
+    on in this frame" against the chosen source's ``active`` labels."""
+    out = model.outputs(batch_features(batch, model.cfg.inputs), batch["text"])
+    logits = out["logits"]
     if model.cfg.output == "clip":
         target = torch.from_numpy(gaussian_target(batch["clip_azimuth"].numpy(), sigma))
-        return soft_cross_entropy(logits, target)
-    az = batch["azimuth"].numpy()
-    mask = batch["active"] & torch.from_numpy(np.isfinite(az))
-    target = torch.from_numpy(gaussian_target(np.where(mask.numpy(), az, np.nan), sigma))
-    return soft_cross_entropy(logits, target, mask)
+        loss = soft_cross_entropy(logits, target)
+    else:
+        az = batch["azimuth"].numpy()
+        mask = batch["active"] & torch.from_numpy(np.isfinite(az))
+        target = torch.from_numpy(gaussian_target(np.where(mask.numpy(), az, np.nan), sigma))
+        loss = soft_cross_entropy(logits, target, mask)
+    if activity_weight and "activity" in out:
+        act = out["activity"]
+        on = pool_frames(batch["active"].float(), model.cfg.pool_frames)  # share of each pooled frame
+        loss = loss + activity_weight * torch.nn.functional.binary_cross_entropy_with_logits(act, on)
+    return loss
 
 
 def feature_norm(source, n: int = 512) -> dict:
@@ -101,7 +112,7 @@ def feature_norm(source, n: int = 512) -> dict:
 
 
 def fit(model_cfg: ModelConfig, cfg: TrainConfig, train_source, text, validate=None, log=print):
-    """Train a :class:`TselNet`; returns ``(model, history)``.
+    """Train the network of ``model_cfg`` (:func:`tsel_baseline.model.build_model`); returns ``(model, history)``.
 
     train_source: a :class:`FeatureTable` or :class:`SceneFeatures` of the training split.
     text:         callable list[str] -> float32 [N, D] (a fitted text encoder's ``encode``).
@@ -118,7 +129,7 @@ def fit(model_cfg: ModelConfig, cfg: TrainConfig, train_source, text, validate=N
     history, best, best_state = [], float("inf"), None
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(cfg.seed)
-        model = TselNet(model_cfg, shapes, first["text"].shape[0], norm)
+        model = build_model(model_cfg, shapes, first["text"].shape[0], norm)
         opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
         loader = torch.utils.data.DataLoader(data, batch_size=cfg.batch_size, shuffle=True, drop_last=True,
                                              generator=torch.Generator().manual_seed(cfg.seed))
@@ -132,7 +143,7 @@ def fit(model_cfg: ModelConfig, cfg: TrainConfig, train_source, text, validate=N
             model.train()
             total, n = 0.0, 0
             for batch in loader:
-                loss = loss_on_batch(model, batch, cfg.sigma)
+                loss = loss_on_batch(model, batch, cfg.sigma, cfg.activity_weight)
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
