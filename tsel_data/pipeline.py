@@ -140,12 +140,7 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
     TselError
         Any problem of the corpus or the bank (the first; ``tsel check`` lists all).
     """
-    layout = Layout(out_dir)
-    check_ownership(layout, force)
-    try:
-        os.makedirs(layout.plan_dir, exist_ok=True)
-    except OSError as e:
-        raise write_error(out_dir, e, out_dir) from None
+    layout = _claim(out_dir, force)
     with DatasetLock(layout, exclusive=True, what="plan it"):
         return _plan_locked(cfg, layout, workers, resume, grow, progress, report)
 
@@ -174,6 +169,17 @@ def check_space(cfg: Config, layout: Layout) -> None:
     if need > free:
         raise DatasetError(f"the dataset needs about {need / 1e9:.2f} GB but {layout.root} has {free / 1e9:.2f} GB "
                            f"free; free space, choose another --out, or make fewer scenes")
+
+
+def _claim(out_dir: str, force: bool) -> Layout:
+    """The dataset folder, created, once it is known to be ours (or ``force``)."""
+    layout = Layout(out_dir)
+    check_ownership(layout, force)
+    try:
+        os.makedirs(layout.plan_dir, exist_ok=True)
+    except OSError as e:
+        raise write_error(out_dir, e, out_dir) from None
+    return layout
 
 
 def check_ownership(layout: Layout, force: bool = False) -> None:
@@ -288,12 +294,7 @@ def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, 
         absent), ``plan_seconds``, ``render_seconds``, ``bytes`` (on disk).
     """
     t0 = time.perf_counter()
-    layout = Layout(out_dir)
-    check_ownership(layout, force)
-    try:
-        os.makedirs(layout.plan_dir, exist_ok=True)
-    except OSError as e:
-        raise write_error(out_dir, e, out_dir) from None
+    layout = _claim(out_dir, force)
     # one lock from planning to finalizing: a second run cannot slip in between the stages
     with DatasetLock(layout, exclusive=True, what="generate it"):
         # clip-check bars only on a terminal: a log file would get thousands of bar updates
