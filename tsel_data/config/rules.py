@@ -203,9 +203,9 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
     out: list[ConfigError] = []
     a = cfg.audio
     if a.label_hop > 0 and a.fs > 0 and a.label_hop * a.fs < 1:
-        out.append(ConfigError(f"{where}: audio.label_hop {a.label_hop} s is shorter than one sample at audio.fs "
+        out.append(ConfigError(f"{at(where, 'audio.label_hop', 'audio.fs')}: audio.label_hop {a.label_hop} s is shorter than one sample at audio.fs "
                                f"{a.fs} Hz; a label frame must hold samples"))
-    if a.duration > 0 and a.label_hop > 0:
+    elif a.duration > 0 and a.label_hop > 0:  # (a hop under a sample may make duration / hop infinite)
         if a.label_hop > a.duration:
             out.append(ConfigError(f"{at(where, 'audio.label_hop', 'audio.duration')}: audio.label_hop {a.label_hop} s is longer than audio.duration "
                                    f"{a.duration} s"))
