@@ -167,11 +167,12 @@ def scene_cost(corpus, root, n) -> dict:
                           overrides=['corpus.check="none"'])
         _, views = prepare_views(cfg, Layout(os.path.join(root, "home")))
         recipes = [plan_scene(cfg, "train", i, views["train"]) for i in range(n)]
-        render_scene(recipes[0])  # warm-up (imports, FFT plans)
+        roots = views["train"].roots  # recipes name clips relative to the corpus
+        render_scene(recipes[0], roots)  # warm-up (imports, FFT plans)
         t0 = time.perf_counter()
         for r in recipes:
             audio._load_clip_cached.cache_clear()
-            render_scene(r)
+            render_scene(r, roots)
         return (time.perf_counter() - t0) / n, cfg
 
     out = {"24 kHz mono": per_scene(corpus)[0]}
