@@ -212,50 +212,7 @@ def ab_ratio(bank, room, rounds=5, walks=6):
 
 
 # --- the level ripple at the knot period -------------------------------------------------------------
-BANDS = (250, 500, 1000, 2000, 4000, 8000)
-
-
-def knot_ripple(render, times, fs, T, reps=6, seed=0):
-    """White noise through ``render`` (x [T] -> y [C, >= T]): the frame power (channels
-    summed, over its moving average across one knot interval) folded over the knot cycle
-    (20 phase bins of every interval inside the clip, averaged over ``reps`` noises); the
-    peak to peak (dB) of its first three harmonics, broadband (key None) and per octave
-    band (brick-wall)."""
-    rng = np.random.default_rng(seed)
-    p = np.asarray(times) * fs
-    prof = {b: np.zeros(20) for b in (None,) + BANDS}
-    for _ in range(reps):
-        y0 = np.asarray(render(rng.standard_normal(T).astype(np.float32))[:, :T], dtype=np.float64)
-        spec = np.fft.rfft(y0, axis=-1)
-        f = np.fft.rfftfreq(T, 1 / fs)
-        for band in prof:
-            if band is None:
-                y = y0
-            else:
-                sb = spec.copy()
-                sb[:, (f < band / np.sqrt(2)) | (f >= band * np.sqrt(2))] = 0
-                y = np.fft.irfft(sb, T, axis=-1)
-            power = (y**2).sum(axis=0)
-            cum = np.r_[0.0, np.cumsum(power)]
-            acc, cnt = np.zeros(20), np.zeros(20)
-            for a, b in zip(p[:-1], p[1:]):
-                D = b - a
-                if a < D or b > T - D - 1:
-                    continue
-                n = np.arange(int(np.ceil(a)), int(np.ceil(b)))
-                lo = np.clip(np.round(n - D / 2).astype(int), 0, T)
-                hi = np.clip(np.round(n + D / 2).astype(int), 0, T)
-                ph = np.minimum(((n - a) / D * 20).astype(int), 19)
-                acc += np.bincount(ph, power[n] / ((cum[hi] - cum[lo]) / (hi - lo)), 20)
-                cnt += np.bincount(ph, None, 20)
-            prof[band] += acc / cnt / reps
-    out = {}
-    u = (np.arange(20) + 0.5) / 20
-    basis = lambda v: np.stack([np.ones_like(v)] + [g(2 * np.pi * k * v) for k in (1, 2, 3) for g in (np.cos, np.sin)], -1)
-    for band, v in prof.items():
-        coef = np.linalg.lstsq(basis(u), 10 * np.log10(v), rcond=None)[0]
-        out[band] = float(np.ptp(basis(np.linspace(0, 1, 200)) @ coef))
-    return out
+from tsel_data.acoustics.metrics import RIPPLE_BANDS as BANDS, knot_ripple  # noqa: E402  (the tests' measure)
 
 
 def ripple_cases():

@@ -13,64 +13,16 @@ import pytest
 
 import tsel_data.timevarying as tv
 from tsel_data.acoustics import SOUND_SPEED, simulate_rirs
+from tsel_data.acoustics.metrics import RIPPLE_BANDS as BANDS
+from tsel_data.acoustics.metrics import knot_ripple
 from tsel_data.acoustics.shoebox import shoebox_rirs
 from tsel_data.geometry import ArrayPose, Room, array_to_room, cart_to_sph, room_to_array
 from tsel_data.timevarying import render_moving
 
 FS = 24000
-BANDS = (250, 500, 1000, 2000, 4000, 8000)
 
 
-# --- the measure ---------------------------------------------------------------------------------
-def knot_profile(y: np.ndarray, times, fs: float, band=None, bins: int = 20) -> np.ndarray:
-    """Mean power (linear, relative to the local trend) per phase bin of the knot cycle.
-
-    y [C, T] (channels summed); optionally an octave band around ``band`` Hz (brick-wall).
-    Per sample power over its trend (a moving average over one knot interval), binned by
-    the phase a = (n - p_i) / (p_{i+1} - p_i) of every knot interval that lies inside the
-    clip with a margin.
-    """
-    y = np.asarray(y, dtype=np.float64)
-    T = y.shape[1]
-    if band is not None:
-        spec = np.fft.rfft(y, axis=-1)
-        f = np.fft.rfftfreq(T, 1 / fs)
-        spec[:, (f < band / np.sqrt(2)) | (f >= band * np.sqrt(2))] = 0
-        y = np.fft.irfft(spec, T, axis=-1)
-    power = (y**2).sum(axis=0)
-    cum = np.r_[0.0, np.cumsum(power)]
-    p = np.asarray(times) * fs
-    acc, cnt = np.zeros(bins), np.zeros(bins)
-    for a, b in zip(p[:-1], p[1:]):
-        D = b - a
-        if a < D or b > T - D - 1:
-            continue
-        n = np.arange(int(np.ceil(a)), int(np.ceil(b)))
-        lo = np.clip(np.round(n - D / 2).astype(int), 0, T)
-        hi = np.clip(np.round(n + D / 2).astype(int), 0, T)
-        ph = np.minimum(((n - a) / D * bins).astype(int), bins - 1)
-        acc += np.bincount(ph, power[n] / ((cum[hi] - cum[lo]) / (hi - lo)), bins)
-        cnt += np.bincount(ph, None, bins)
-    return acc / cnt
-
-
-def knot_ripple(render, times, fs: float, T: int, reps: int = 6, seed: int = 0) -> dict:
-    """Peak-to-peak (dB) over the knot cycle of white noise's frame power through ``render``,
-    broadband (key None) and per octave band: the profile's first three harmonics."""
-    rng = np.random.default_rng(seed)
-    prof = {b: 0.0 for b in (None,) + BANDS}
-    for _ in range(reps):
-        y = render(rng.standard_normal(T).astype(np.float32))[:, :T]
-        for b in prof:
-            prof[b] = prof[b] + knot_profile(y, times, fs, b) / reps
-    out = {}
-    for b, v in prof.items():
-        db = 10 * np.log10(v)
-        ph = (np.arange(len(db)) + 0.5) / len(db)
-        basis = lambda u: np.stack([np.ones_like(u)] + [f(2 * np.pi * k * u) for k in (1, 2, 3) for f in (np.cos, np.sin)], -1)
-        coef = np.linalg.lstsq(basis(ph), db, rcond=None)[0]
-        out[b] = float(np.ptp(basis(np.linspace(0, 1, 200)) @ coef))
-    return out
+# --- cases (the measure: tsel_data.acoustics.metrics.knot_ripple) -----------------------------------
 
 
 def _line_pass(fmt, speed=40.0, dur=6.0, rt60=0.4, max_order=None):
