@@ -116,3 +116,46 @@ def test_a_moved_dataset_and_corpus_are_read_resumed_and_finished_there(capsys, 
     assert code == 0 and "note: no stems" in err and (tmp_path / "x.wav").is_file()
     assert cli(capsys, "export", "dcase", ds, "--out", tmp_path / "dcase")[0] == 0
     assert cli(capsys, "verify", ds)[0] == 0
+
+
+def _seals(ds: Path) -> dict[str, int]:
+    return {str(p.relative_to(ds)): p.stat().st_mtime_ns for p in sorted(ds.rglob("*.seal.json"))}
+
+
+def test_inputs_not_where_the_plan_says_are_named_and_nothing_is_touched(capsys, corpus_copy, tmp_path):
+    _, corpus = corpus_copy
+    mine = tmp_path / "corpus"
+    shutil.copytree(corpus, mine)
+    ds = tmp_path / "ds"
+    assert cli(capsys, *generate_args(mine, ds))[0] == 0
+    before = _seals(ds)
+    # a resume that does not say where the corpus is keeps the plan's root: nothing to render
+    resume = [a for a in generate_args(mine, ds, "--resume") if a not in ("--corpus-dir", mine)]
+    code, _, err = cli(capsys, *resume)
+    assert code == 0, err
+    assert _seals(ds) == before
+    assert json.loads((ds / "plan" / "config.json").read_text())["config"]["corpus"]["dir"] == "../corpus"
+    # the corpus gone: render, finalize and a resume say so in one line and change nothing
+    os.rename(mine, tmp_path / "elsewhere")
+    for args in (["render", ds, "--quiet"], ["finalize", ds], resume):
+        code, _, err = cli(capsys, *args)
+        lines = [line for line in err.splitlines() if line.strip()]
+        assert code == 2 and len(lines) == 1 and "--corpus-dir" in lines[0] and "not in the corpus" in lines[0], err
+        assert _seals(ds) == before
+    # a resume naming a corpus that is not there either is refused before anything is stored
+    code, _, err = cli(capsys, *generate_args(tmp_path / "nowhere", ds, "--resume"))
+    assert code == 2 and "corpus.dir" in err and "not found" in err
+    assert json.loads((ds / "plan" / "config.json").read_text())["config"]["corpus"]["dir"] == "../corpus"
+    assert cli(capsys, "render", ds, "--corpus-dir", tmp_path / "elsewhere", "--quiet")[0] == 0
+    assert _seals(ds) == before  # found: every shard verifies, none is rendered again
+
+
+def test_a_dataset_made_through_a_symlink_is_read_through_its_real_path(capsys, corpus_copy, tmp_path):
+    _, corpus = corpus_copy
+    (tmp_path / "real" / "deep").mkdir(parents=True)
+    os.symlink(tmp_path / "real" / "deep", tmp_path / "link")
+    assert cli(capsys, *generate_args(corpus, tmp_path / "link" / "ds"))[0] == 0
+    real = tmp_path / "real" / "deep" / "ds"
+    before = _seals(real)
+    assert cli(capsys, "finalize", real)[0] == 0 and cli(capsys, "render", real, "--quiet")[0] == 0
+    assert _seals(real) == before

@@ -399,7 +399,7 @@ def write_missing_clips(path: str, scan: CatalogScan, root: str = "") -> None:
     audio files are absent, where they were looked for (relative to the corpus folder
     ``root``), and their clip ids (compact: ids only, the problem is the same for all)."""
     doc = {"splits": {split: {"listed": scan.counts[split]["clips"], "missing": len(clips),
-                              "audio_dir": _below(scan.audio_dirs.get(split, ""), root),
+                              "audio_dir": _relative(scan.audio_dirs.get(split, ""), root),
                               "clip_ids": [c.id for c in clips]}
                       for split, clips in scan.missing.items() if clips}}
     write_json(path, doc)
@@ -410,6 +410,13 @@ def write_bad_clips(path: str, bad: list[BadClip], root: str = "") -> None:
     folder ``root`` (a dataset names no folder of the machine it was made on)."""
     write_lines(path, [json.dumps({**b.to_json(), "origin": _below(b.origin, root),
                                    "problem": _below(b.problem, root)}, ensure_ascii=False) for b in bad])
+
+
+def _relative(path: str, root: str) -> str:
+    """A folder's path relative to the corpus folder ``root`` (``/``-separated)."""
+    if not root or not path:
+        return path
+    return os.path.relpath(os.path.abspath(path), os.path.abspath(root)).replace(os.sep, "/")
 
 
 def _below(text: str, root: str) -> str:

@@ -24,7 +24,7 @@ import time
 from .atomic import write_error, write_json, write_lines
 from .catalog import write_bad_clips, write_missing_clips
 from .config import Config, Difference, config_differences
-from .errors import DatasetError, TselError
+from .errors import ConfigError, DatasetError, TselError
 from .geometry import CHANNEL_NAMES
 from .plan import plan_roots, plan_split_json, prepare_views
 from .shards import (PlanPart, expected_fingerprint, finalize, load_plan, load_plan_part,  # noqa: F401 (the job's API)
@@ -61,16 +61,29 @@ def plan_differences(layout: Layout, cfg: Config, roots: bool = False) -> list[D
 
 
 def _move_roots(layout: Layout, cfg: Config) -> None:
-    """Store ``cfg``'s roots in the plan (a resume that names where the inputs are now)."""
-    if plan_differences(layout, cfg, roots=True):
-        doc = read_plan_doc(layout)
-        config = dict(doc["config"])
-        given = portable_roots(cfg.to_dict(), layout.root)
-        for key in ROOT_KEYS:
-            sec, name = key.split(".")
-            if name in (given.get(sec) or {}):
-                config[sec] = {**config.get(sec, {}), name: given[sec][name]}
-        write_json(layout.config_file, {**doc, "config": config})
+    """Store where ``cfg`` says the inputs are now, when that is a place that exists (a
+    resume after the corpus or the bank moved). The plan's root stays when ``cfg`` gives
+    none, a built-in default, or a place that is gone while the plan's still resolves (the
+    dataset moved together with its inputs, resumed with the original command line)."""
+    moved = []
+    for d in plan_differences(layout, cfg, roots=True):
+        new, old = str(d.after or ""), str(d.before or "")
+        if not new or (new.startswith("builtin:") and not old.startswith("builtin:")):
+            continue
+        if os.path.exists(os.path.expanduser(new)) or new.startswith("builtin:"):
+            moved.append(d)
+        elif old.startswith("builtin:") or not os.path.exists(old):
+            raise ConfigError(f"{d.key} {new} not found, and the plan's {old} is not there either; give where it is "
+                              f"now")
+    if not moved:
+        return
+    doc = read_plan_doc(layout)
+    config = dict(doc["config"])
+    given = portable_roots(cfg.to_dict(), layout.root)
+    for d in moved:
+        sec, name = d.key.split(".")
+        config[sec] = {**config.get(sec, {}), name: given[sec][name]}
+    write_json(layout.config_file, {**doc, "config": config})
 
 
 def growth(diffs: list[Difference]) -> dict[str, tuple[int, int]] | None:

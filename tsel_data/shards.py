@@ -119,6 +119,29 @@ def _recipe(layout: Layout, split: str, index: int, line: str) -> SceneRecipe:
 # --- render ----------------------------------------------------------------------------------
 
 
+def _require_inputs(out_dir: str, cfg: Config, recipe_lists, roots: Roots, verb: str) -> None:
+    """Refuse, in one line and before touching a shard, when files the recipes read are not
+    where the roots say: a moved or unmounted corpus or bank is not a changed one, and
+    taking it for one would render every finished shard again (or strip their seals)."""
+    missing, seen = [], set()
+    for recipes in recipe_lists:
+        for name, path in roots.inputs(recipes):
+            if path not in seen:
+                seen.add(path)
+                if not os.path.exists(path):
+                    missing.append((name, path))
+    if not missing:
+        return
+    name, path = missing[0]
+    banks = {r.bank.path for recipes in recipe_lists for r in recipes if r.bank}
+    if name in banks:
+        where, flag = f"the RIR bank is not at {path}", "--bank"
+    else:
+        where, flag = f"{len(missing)} clip(s) are not in the corpus at {roots.corpus}, e.g. {name}", "--corpus-dir"
+    raise DatasetError(f"{where}; if it moved, pass {flag} with where it is now (to `tsel {verb}` or `tsel generate "
+                       f"... --resume`); nothing was changed")
+
+
 def expected_fingerprint(recipes: list[SceneRecipe], roots: Roots) -> str:
     """The fingerprint a shard of these recipes must carry, with its inputs (clips, RIR
     bank) as they are now."""
@@ -194,6 +217,7 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
                                    f"{len(tasks)} shards (0-{len(tasks) - 1})")
             tasks = [tasks[i] for i in shards]
         plans = load_plan_part(layout, cfg, tasks)  # only the recipes of these shards
+        _require_inputs(out_dir, cfg, [plans[t.split][t.start:t.stop] for t in tasks], roots, "render")
         todo, redo = [], []
         for t in tasks:
             state, why = shard_state(layout, t.split, t.shard,
@@ -258,6 +282,7 @@ def finalize(out_dir: str, corpus_dir: str | None = None, bank: str | None = Non
     layout = Layout(out_dir)
     cfg, plans = load_plan(out_dir, corpus_dir, bank)
     roots = plan_roots(cfg, layout)
+    _require_inputs(out_dir, cfg, plans.values(), roots, "finalize")
     with DatasetLock(layout, exclusive=True, what="finalize it"):
         entries: dict[str, list] = {split: [] for split in plans}  # config order
         missing, bad = [], []

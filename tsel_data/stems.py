@@ -74,7 +74,13 @@ def write_stems(root: str, scene, base: str, corpus_dir: str | None = None,
     ``BASE.target.stereo.wav``, ``BASE.interferer1.stereo.wav``, ... Returns the paths
     and whether the stems match the stored mixture (False: the clips changed since)."""
     recipe = scene_recipe(root, scene.split, scene.index, scene.scene_id)
-    stems, same = render_stems(recipe, scene.audio, dataset_roots(root, corpus_dir, bank))
+    roots = dataset_roots(root, corpus_dir, bank)
+    gone = [name for name, path in roots.inputs([recipe]) if not os.path.exists(path)]
+    if gone:
+        flag = "--bank" if recipe.bank is not None and gone[0] == recipe.bank.path else "--corpus-dir"
+        raise DatasetError(f"the stems are rendered from the clips and {gone[0]} is not where the plan says; pass "
+                           f"{flag} with where it is now")
+    stems, same = render_stems(recipe, scene.audio, roots)
     stem = os.path.splitext(base)[0]
     paths = []
     for k, src in enumerate(recipe.sources):

@@ -78,14 +78,16 @@ def portable_roots(config: dict, root: str) -> dict:
     """``config`` (plain data) with its roots (:data:`ROOT_KEYS`) relative to the dataset
     folder ``root``, as files store them: a dataset moved together with its corpus needs
     nothing, and no absolute path of the machine it was made on is written."""
-    base = os.path.abspath(root)
-    return _map_roots(config, lambda v: os.path.relpath(os.path.abspath(os.path.expanduser(v)), base)
+    # real paths: a dataset reached through a symlink resolves its roots from where it
+    # really is, however it is named later
+    base = os.path.realpath(root)
+    return _map_roots(config, lambda v: os.path.relpath(os.path.realpath(os.path.expanduser(v)), base)
                       .replace(os.sep, "/"))
 
 
 def local_roots(config: dict, root: str) -> dict:
     """The inverse of :func:`portable_roots`: roots as paths on this machine."""
-    base = os.path.abspath(root)
+    base = os.path.realpath(root)
     return _map_roots(config, lambda v: os.path.normpath(os.path.join(base, os.path.expanduser(v))))
 
 
