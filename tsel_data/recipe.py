@@ -358,11 +358,17 @@ def read_plan(path) -> list[SceneRecipe]:
             for n, raw in enumerate(f, 1):
                 if not raw.strip():
                     continue
-                try:
-                    out.append(SceneRecipe.from_json(raw.decode("utf-8")))
-                except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
-                    raise DatasetError(f"{path}:{n}: damaged scene recipe ({type(e).__name__}: "
-                                       f"{str(e)[:80]}); plan again into a new --out") from None
+                out.append(recipe_from_line(path, n, raw))
     except OSError as e:
         raise DatasetError(f"{path}: cannot read the plan ({e.strerror or e}); plan again into a new --out") from None
     return out
+
+
+def recipe_from_line(path, n: int, raw: bytes | str) -> SceneRecipe:
+    """The recipe on line ``n`` (1-based) of plan file ``path`` (DatasetError naming the
+    line when it is damaged)."""
+    try:
+        return SceneRecipe.from_json(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+    except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
+        raise DatasetError(f"{path}:{n}: damaged scene recipe ({type(e).__name__}: {str(e)[:80]}); plan again "
+                           f"into a new --out") from None

@@ -19,7 +19,7 @@ from .errors import AudioError, BankError, DatasetError
 from .executors import Runner
 from .h5str import as_strs
 from .plan import plan_roots
-from .recipe import Roots, SceneRecipe
+from .recipe import Roots, SceneRecipe, recipe_from_line
 from .render import render_scene
 from .store.dataset import ShardEntry, dataset_doc, shard_attrs
 from .store.integrity import read_seal, shard_fingerprint, shard_state
@@ -66,13 +66,13 @@ def plan_config(out_dir: str, corpus_dir: str | None = None, bank: str | None = 
     return parse_config(raw, where=layout.config_file)
 
 
-def _check_count(layout: Layout, cfg: Config, split: str, have: int, wanted: int | None = None) -> None:
-    if have != (cfg.splits[split].count if wanted is None else wanted):
-        # plan files are written before plan/config.json: a grow interrupted in between
-        raise DatasetError(f"{layout.plan_file(split)} holds {'fewer than ' if wanted is not None else ''}"
-                           f"{cfg.splits[split].count if wanted is not None else have} scenes but "
-                           f"{layout.config_file} asks {cfg.splits[split].count}; the plan was interrupted: run the "
-                           f"same `tsel generate ... --grow` again")
+def _check_count(layout: Layout, cfg: Config, split: str, have: int) -> None:
+    """Plan files are written before plan/config.json: a grow interrupted in between leaves
+    them with another count than the config's."""
+    if have != cfg.splits[split].count:
+        raise DatasetError(f"{layout.plan_file(split)} holds {have} scenes but {layout.config_file} asks "
+                           f"{cfg.splits[split].count}; the plan was interrupted: run the same `tsel generate ... "
+                           f"--grow` again")
 
 
 def plan_shard_tasks(cfg: Config) -> list[ShardTask]:
@@ -102,21 +102,11 @@ def load_plan_part(layout: Layout, cfg: Config, tasks: list[ShardTask]) -> dict[
             continue
         start, stop = min(t.start for t in mine), max(t.stop for t in mine)
         lines = read_plan_range(layout, split, start, stop)
-        if len(lines) != stop - start:
-            _check_count(layout, cfg, split, start + len(lines), wanted=stop)
-        parts[split] = PlanPart(start, [_recipe(layout, split, start + k, line) for k, line in enumerate(lines)])
+        if len(lines) != stop - start:  # the file ends early: it holds start + len(lines) scenes
+            _check_count(layout, cfg, split, start + len(lines))
+        path = layout.plan_file(split)
+        parts[split] = PlanPart(start, [recipe_from_line(path, start + k + 1, line) for k, line in enumerate(lines)])
     return parts
-
-
-def _recipe(layout: Layout, split: str, index: int, line: str) -> SceneRecipe:
-    try:
-        return SceneRecipe.from_json(line)
-    except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
-        raise DatasetError(f"{layout.plan_file(split)}:{index + 1}: damaged scene recipe ({type(e).__name__}: "
-                           f"{str(e)[:80]}); plan again into a new --out") from None
-
-
-# --- render ----------------------------------------------------------------------------------
 
 
 def _require_inputs(out_dir: str, cfg: Config, recipe_lists, roots: Roots, verb: str) -> None:
