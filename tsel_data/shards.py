@@ -22,7 +22,7 @@ from .plan import plan_roots
 from .recipe import Roots, SceneRecipe, recipe_from_line
 from .render import render_scene
 from .store.dataset import ShardEntry, dataset_doc, shard_attrs
-from .store.integrity import read_seal, shard_fingerprint, shard_state
+from .store.integrity import input_stats, missing_inputs, read_seal, shard_fingerprint, shard_state
 from .store.layout import Layout
 from .store.lock import DatasetLock
 from .store.plans import (ShardTask, local_roots, portable_roots, read_plan_doc, read_plan_range, read_split_plan,
@@ -109,33 +109,31 @@ def load_plan_part(layout: Layout, cfg: Config, tasks: list[ShardTask]) -> dict[
     return parts
 
 
-def _require_inputs(out_dir: str, cfg: Config, recipe_lists, roots: Roots, verb: str) -> None:
-    """Refuse, in one line and before touching a shard, when files the recipes read are not
-    where the roots say: a moved or unmounted corpus or bank is not a changed one, and
-    taking it for one would render every finished shard again (or strip their seals)."""
-    missing, seen = [], set()
-    for recipes in recipe_lists:
-        for name, path in roots.inputs(recipes):
-            if path not in seen:
-                seen.add(path)
-                if not os.path.exists(path):
-                    missing.append((name, path))
+def inputs_here(out_dir: str, shard_recipes: list, roots: Roots, verb: str) -> list[list]:
+    """:func:`~tsel_data.store.integrity.input_stats` of each shard's inputs (read once,
+    for its fingerprint). Refuses, in one line and before any shard is touched, when files
+    are not where the roots say: a moved or unmounted corpus or bank is not a changed one,
+    and taking it for one would render every finished shard again (or strip their seals)."""
+    stats = [input_stats(roots.inputs(recipes)) for recipes in shard_recipes]
+    missing = sorted({name for st in stats for name in missing_inputs(st)})
     if not missing:
-        return
-    name, path = missing[0]
-    banks = {r.bank.path for recipes in recipe_lists for r in recipes if r.bank}
-    if name in banks:
-        where, flag = f"the RIR bank is not at {path}", "--bank"
+        return stats
+    banks = {r.bank.path for recipes in shard_recipes for r in recipes if r.bank}
+    if missing[0] in banks:
+        where, flag = f"the RIR bank is not at {roots.bank_file(missing[0])}", "--bank"
     else:
-        where, flag = f"{len(missing)} clip(s) are not in the corpus at {roots.corpus}, e.g. {name}", "--corpus-dir"
+        where = f"{len(missing)} clip(s) are not in the corpus at {roots.corpus}, e.g. {missing[0]}"
+        flag = "--corpus-dir"
     raise DatasetError(f"{where}; if it moved, pass {flag} with where it is now (to `tsel {verb}` or `tsel generate "
                        f"... --resume`); nothing was changed")
 
 
-def expected_fingerprint(recipes: list[SceneRecipe], roots: Roots) -> str:
+def expected_fingerprint(recipes: list[SceneRecipe], roots: Roots, stats: list | None = None) -> str:
     """The fingerprint a shard of these recipes must carry, with its inputs (clips, RIR
-    bank) as they are now."""
-    return shard_fingerprint([r.to_json() for r in recipes], roots.inputs(recipes))
+    bank) as they are now (``stats``, when :func:`inputs_here` has read them already)."""
+    if stats is None:
+        stats = input_stats(roots.inputs(recipes))
+    return shard_fingerprint([r.to_json() for r in recipes], stats)
 
 
 def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attrs: dict, roots: Roots) -> int:
@@ -207,11 +205,10 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
                                    f"{len(tasks)} shards (0-{len(tasks) - 1})")
             tasks = [tasks[i] for i in shards]
         plans = load_plan_part(layout, cfg, tasks)  # only the recipes of these shards
-        _require_inputs(out_dir, cfg, [plans[t.split][t.start:t.stop] for t in tasks], roots, "render")
+        recipes = [plans[t.split][t.start:t.stop] for t in tasks]
         todo, redo = [], []
-        for t in tasks:
-            state, why = shard_state(layout, t.split, t.shard,
-                                     expected_fingerprint(plans[t.split][t.start:t.stop], roots))
+        for t, rs, stats in zip(tasks, recipes, inputs_here(out_dir, recipes, roots, "render")):
+            state, why = shard_state(layout, t.split, t.shard, expected_fingerprint(rs, roots, stats))
             if state != "complete":
                 todo.append(t)
                 if state in ("stale", "damaged"):
@@ -272,13 +269,15 @@ def finalize(out_dir: str, corpus_dir: str | None = None, bank: str | None = Non
     layout = Layout(out_dir)
     cfg, plans = load_plan(out_dir, corpus_dir, bank)
     roots = plan_roots(cfg, layout)
-    _require_inputs(out_dir, cfg, plans.values(), roots, "finalize")
+    tasks = plan_shard_tasks(cfg)
+    shard_recipes = [plans[t.split][t.start:t.stop] for t in tasks]
+    stats = inputs_here(out_dir, shard_recipes, roots, "finalize")
     with DatasetLock(layout, exclusive=True, what="finalize it"):
         entries: dict[str, list] = {split: [] for split in plans}  # config order
         missing, bad = [], []
-        for task in plan_shard_tasks(cfg):
-            recipes = plans[task.split][task.start:task.stop]
-            state, why = shard_state(layout, task.split, task.shard, expected_fingerprint(recipes, roots), deep=True)
+        for task, recipes, st in zip(tasks, shard_recipes, stats):
+            state, why = shard_state(layout, task.split, task.shard, expected_fingerprint(recipes, roots, st),
+                                     deep=True)
             if state == "missing":
                 missing.append(task.files[0])
                 continue

@@ -17,14 +17,15 @@ import os
 import numpy as np
 
 from .audio import save_wav
-from .config import parse_config
 from .errors import DatasetError
 from .plan import plan_roots
 from .recipe import Roots, SceneRecipe
 from .render import mix_parts
+from .shards import plan_config
 from .stereo import stereo_preview
+from .store.integrity import input_stats, missing_inputs
 from .store.layout import Layout
-from .store.plans import read_plan_lines, stored_config
+from .store.plans import read_plan_lines
 
 # The stored mixture and the one rendered again agree to float32 rounding; more means the
 # clips or the bank changed since the dataset was made.
@@ -47,14 +48,7 @@ def scene_recipe(root: str, split: str, index: int, scene_id: str) -> SceneRecip
 
 def dataset_roots(root: str, corpus_dir: str | None = None, bank: str | None = None) -> Roots:
     """Where the files of a dataset's recipes are: as its plan says, or as given."""
-    layout = Layout(root)
-    raw = stored_config(layout)
-    if raw is None:
-        raise DatasetError(f"{root} has no readable plan ({layout.config_file}); the stems are rendered from the "
-                           f"scene's recipe")
-    raw = {**raw, "corpus": {**raw.get("corpus", {}), **({"dir": corpus_dir} if corpus_dir else {})},
-           "room": {**raw.get("room", {}), **({"bank": bank} if bank else {})}}
-    return plan_roots(parse_config(raw, where=layout.config_file, validate=False), layout)
+    return plan_roots(plan_config(root, corpus_dir, bank), Layout(root))
 
 
 def render_stems(recipe: SceneRecipe, mixture: np.ndarray | None = None,
@@ -75,7 +69,7 @@ def write_stems(root: str, scene, base: str, corpus_dir: str | None = None,
     and whether the stems match the stored mixture (False: the clips changed since)."""
     recipe = scene_recipe(root, scene.split, scene.index, scene.scene_id)
     roots = dataset_roots(root, corpus_dir, bank)
-    gone = [name for name, path in roots.inputs([recipe]) if not os.path.exists(path)]
+    gone = missing_inputs(input_stats(roots.inputs([recipe])))
     if gone:
         flag = "--bank" if recipe.bank is not None and gone[0] == recipe.bank.path else "--corpus-dir"
         raise DatasetError(f"the stems are rendered from the clips and {gone[0]} is not where the plan says; pass "

@@ -56,10 +56,15 @@ def _stat(name: str, path: str) -> tuple:
     return (name, st.st_size, st.st_mtime_ns)
 
 
-def shard_fingerprint(recipe_lines, inputs) -> str:
+def missing_inputs(stats) -> list[str]:
+    """The names of the files :func:`input_stats` did not find."""
+    return [name for name, size, _ in stats if size < 0]
+
+
+def shard_fingerprint(recipe_lines, stats) -> str:
     """sha256 of a shard's recipes (their JSON lines, in order) and of the files they read
-    as they are now (:func:`input_stats` of (name, path) pairs)."""
-    doc = {"seal": SEAL_VERSION, "recipes": list(recipe_lines), "inputs": input_stats(inputs)}
+    as they are now (``stats``: :func:`input_stats`)."""
+    doc = {"seal": SEAL_VERSION, "recipes": list(recipe_lines), "inputs": stats}
     return hashlib.sha256(json.dumps(doc, separators=(",", ":")).encode("utf-8")).hexdigest()
 
 
