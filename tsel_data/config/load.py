@@ -85,9 +85,9 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
     for label, table in layers:
         clash = _table_over_value(raw, table)
         if clash:
-            raise ConfigError(f"{label}: {clash} is set to a value, not a table (by {origins.get(clash, 'the config')}); "
-                              f"set the keys inside it instead (e.g. {clash}.count)" if clash.startswith("splits.")
-                              else f"{label}: {clash} is set to a value, not a table (by {origins.get(clash, 'the config')})")
+            hint = f"; set the keys inside it instead (e.g. {clash}.count)" if clash.startswith("splits.") else ""
+            raise ConfigError(f"{label}: {clash} is set to a value, not a table (by {origins.get(clash, 'the config')})"
+                              f"{hint}")
         raw = _merge(raw, table)
         origins.update((key, label) for key in _leaf_keys(table))
     base = path or (f"preset {preset}" if preset else "config")
