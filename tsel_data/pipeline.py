@@ -311,8 +311,7 @@ def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, 
     # one lock from planning to finalizing: a second run cannot slip in between the stages
     with DatasetLock(layout, exclusive=True, what="generate it"):
         # clip-check bars only on a terminal: a log file would get thousands of bar updates
-        plan_dataset(cfg, out_dir, workers=workers, resume=resume, grow=grow, force=force,
-                     progress=None if progress else False, report=report)
+        _plan_locked(cfg, layout, workers, resume, grow, None if progress else False, report)
         t1 = time.perf_counter()
         rendered = render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
         t2 = time.perf_counter()
