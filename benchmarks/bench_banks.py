@@ -27,6 +27,17 @@ ripple: white noise through moving sources, frame power over the knot cycle (pea
    peak, dB), broadband and per octave band 250 Hz - 8 kHz, plain crossfade vs
    delay-aware: simulated line passes and an arc (hybrid RIRs, FOA and mic4), and a walk
    along a simulated linear bank trajectory (RIRs every 5 cm along a line).
+against: one 10 s moving FOA source, this renderer against another commit's
+   (--against REV, default 7d1f69f: the renderer before the delay-aware model), loaded
+   from git into this process, on the same walks, interleaved: median of the paired time
+   ratios on circles and lines (needs a git checkout).
+planned: line passes planned from a preset's rooms (--preset, default demo; motion
+   "moving", path "line", two directional sources, FOA and mic4, --planned scenes each),
+   rendered as the toolkit does (render.path_image: knots by placement.knot_hop, the
+   shared tail convolved apart) against the same paths the way it did before in the same
+   run (knots every 100 ms / 4 degrees, whole RIRs through the moving renderer): ripple
+   median / 90th percentile / max over the sources, broadband and the worst octave band
+   from 1 kHz (below, the measure's own noise is ~0.3-0.5 dB), knots and ms per source.
 """
 from __future__ import annotations
 
@@ -51,7 +62,8 @@ FS = 24000
 
 def tau_shaped_bank(path, L=7200, n=360, seed=0):
     """FOA RIRs: direct path with the position's gains + exponentially decaying diffuse
-    noise (independent per RIR, as measured RIRs' late parts are). Room "room": circles;
+    noise from the direct path on (independent per RIR, as measured RIRs' late parts
+    are; nothing arrives before the direct sound). Room "room": circles;
     room "lines": straight lines (positions every 5 cm, the direct path at its fractional
     delay)."""
     from tsel_data.geometry import cart_to_sph
@@ -65,6 +77,7 @@ def tau_shaped_bank(path, L=7200, n=360, seed=0):
         az = np.arange(n) * 360.0 / n - 180.0
         pos = np.stack([az, np.full(n, el), np.full(n, r)], -1)
         h = (rng.standard_normal((n, 4, L)).astype(np.float32) * 0.05 * env)
+        h[:, :, : int(r / 343 * FS)] = 0.0
         h[:, :, int(r / 343 * FS)] += foa_gains(az, el).astype(np.float32) / r
         circles.append((Trajectory("room", f"t{tid}", "circular", pos, True), h))
     lines = []
@@ -75,6 +88,7 @@ def tau_shaped_bank(path, L=7200, n=360, seed=0):
         for i, (az, el, r) in enumerate(pos):
             d = r / 343 * FS
             n0 = int(np.rint(d))
+            h[i, :, : n0 - 16] = 0.0
             h[i, :, n0 - 16 : n0 + 17] += np.outer(foa_gains(az, el) / r, fractional_kernel([d - n0])[0]).astype(np.float32)
         lines.append((Trajectory("lines", f"l{tid}", "linear", pos, False), h))
     return write_bank(path, MemoryBank(FS, "foa", {"room": circles, "lines": lines}))
@@ -189,26 +203,43 @@ def snr_db(ref, y):
     return float(10 * np.log10(np.sum(ref[:, :n] ** 2) / np.sum((ref[:, :n] - y[:, :n]) ** 2)))
 
 
-# --- delay-aware vs plain crossfade: time, interleaved ----------------------------------------------
-def ab_ratio(bank, room, rounds=5, walks=6):
-    """Median over paired renders of time(delay-aware) / time(plain crossfade), and the
-    median times (ms), for 10 s walks at 10/20/40 °/s in ``room``; renders interleaved."""
-    rng = np.random.default_rng(4)
+# --- paired timings: delay-aware vs plain crossfade, this renderer vs another commit's ------------
+def paired_ratio(bank, room, new, old, rounds=5, walks=6, seed=4):
+    """Median over paired renders of time(new) / time(old), and the median times (ms), for
+    10 s walks at 10/20/40 °/s in ``room``; ``new`` and ``old`` take (signal, rirs, times)
+    and are run interleaved, walk by walk (the machine may be shared; pairs cancel most of
+    its drift)."""
+    rng = np.random.default_rng(seed)
     x = rng.standard_normal(10 * FS).astype(np.float32)
     cases = []
     for _ in range(walks):
         tid, idx, times = sample_bank_path(bank, room, rng, 10.0, (10.0, 20.0, 40.0))
         cases.append((bank.views(room, tid, idx), times))
-    render_moving(x, *cases[0], FS)  # warm-up
+    for fn in (new, old):  # warm-up
+        fn(x, *cases[0])
     t_new, t_old = [], []
     for _ in range(rounds):
         for rirs, times in cases:
-            for out, delays in ((t_old, None), (t_new, "auto")):
+            for out, fn in ((t_old, old), (t_new, new)):
                 t0 = time.process_time()
-                render_moving(x, rirs, times, FS, delays=delays)
+                fn(x, rirs, times)
                 out.append(time.process_time() - t0)
     t_new, t_old = np.array(t_new), np.array(t_old)
     return float(np.median(t_new / t_old)), float(np.median(t_new) * 1e3), float(np.median(t_old) * 1e3)
+
+
+def renderer_at(rev):
+    """tsel_data/timevarying.py as it was at commit ``rev``, as a module of this package."""
+    import importlib.util
+    import subprocess
+
+    root = os.path.join(os.path.dirname(__file__), "..")
+    src = subprocess.run(["git", "-C", root, "show", f"{rev}:tsel_data/timevarying.py"], capture_output=True,
+                         text=True, check=True).stdout
+    mod = importlib.util.module_from_spec(importlib.util.spec_from_loader(f"tsel_data._timevarying_{rev}", None))
+    mod.__package__ = "tsel_data"
+    exec(compile(src, f"timevarying.py@{rev}", "exec"), mod.__dict__)
+    return mod
 
 
 # --- the level ripple at the knot period -------------------------------------------------------------
@@ -245,21 +276,77 @@ def ripple_cases():
         yield f"{fmt} linear bank walk 20 deg/s", lin.read("lin", tid, idx), times
 
 
+def planned_section(preset, n, reps=6):
+    """Ripple and cost of planned line passes, now against before (module docstring)."""
+    from tsel_data import placement
+    from tsel_data.acoustics import simulate_rirs
+    from tsel_data.acoustics.metrics import RIPPLE_BANDS
+    from tsel_data.errors import GeometryError
+    from tsel_data.onthefly import scene_source
+    from tsel_data.render import path_image
+
+    def before_image(r, path, x, seed):
+        rs = simulate_rirs(r.room, r.array, path[:, 1:], FS, method=r.rir_method, seed=seed, one_source=True)
+        return render_moving(x, rs.rirs, path[:, 0], FS)[:, : len(x)]
+
+    def now_image(r, path, x, seed):
+        return path_image(r.room, r.array, path, x, FS, r.rir_method, seed)[0]
+
+    travel = placement.KNOT_TRAVEL_M
+    rows = {"before": [], "now": []}
+    with tempfile.TemporaryDirectory() as home:
+        for fmt in ("foa", "mic4"):
+            # the preset's rooms and array; the clips do not matter (white noise), so the built-in ones
+            src = scene_source(preset=preset, split="train", home=home, overrides=[
+                'corpus.dir="builtin:demo"', 'corpus.format="audiocaps"', 'scene.motion="moving"', 'scene.path="line"', f'scene.format="{fmt}"',
+                'scene.scenario="two-directional"', 'scene.interferers=1'])
+            for label, render in (("before", before_image), ("now", now_image)):
+                placement.KNOT_TRAVEL_M = np.inf if label == "before" else travel
+                for i in range(n):
+                    try:
+                        r = src.recipe(i)
+                    except GeometryError:  # the preset's rooms cannot hold this draw
+                        continue
+                    for k, s in enumerate(r.sources):
+                        if not s.path:
+                            continue
+                        path = np.asarray(s.path)
+                        times, T = path[:, 0], int(min(path[-1, 0], r.duration) * FS)
+                        t0 = time.process_time()
+                        render(r, path, np.ones(T, np.float32), r.seed + 1 + k)
+                        cost = time.process_time() - t0
+                        rip = knot_ripple(lambda v: render(r, path, v, r.seed + 1 + k)[:, :T], times, FS, T, reps=reps)
+                        rows[label].append((rip[None], max(rip[b] for b in RIPPLE_BANDS if b >= 1000), len(path), cost))
+    placement.KNOT_TRAVEL_M = travel
+    print(f"planned line passes ({preset} rooms, FOA and mic4, {len(rows['now'])} sources; peak to peak dB, "
+          f"median / p90 / max):")
+    for label, got in rows.items():
+        bb, ob = np.array([g[0] for g in got]), np.array([g[1] for g in got])
+        q = lambda v: f"{np.median(v):.2f} / {np.percentile(v, 90):.2f} / {v.max():.2f}"
+        print(f"  {label:7s} broadband {q(bb)}; worst octave >= 1 kHz {q(ob)}; knots {np.mean([g[2] for g in got]):.0f}, "
+              f"{np.median([g[3] for g in got]) * 1e3:.0f} ms per source (simulate + render)")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bank", help="bank to use (default: a TAU-shaped synthetic FOA bank)")
     ap.add_argument("--scenes", type=int, default=20)
     ap.add_argument("--brute-seconds", type=float, default=2.0)
     ap.add_argument("--repeats", type=int, default=3, help="runs per measurement; medians are reported")
-    ap.add_argument("--sections", default="speed,ab,stft,accuracy,ripple",
-                    help="comma-separated: speed, ab, stft, accuracy, ripple (default: all)")
+    ap.add_argument("--sections", default="speed,ab,against,stft,accuracy,ripple,planned",
+                    help="comma-separated: speed, ab, against, stft, accuracy, ripple, planned (default: all)")
+    ap.add_argument("--against", default="7d1f69f", help="against: the commit whose renderer to time")
+    ap.add_argument("--preset", default="demo", help="planned: the preset whose rooms the line passes are planned in")
+    ap.add_argument("--planned", type=int, default=12, help="planned: scenes per format")
     args = ap.parse_args()
     sections = set(args.sections.split(","))
     prepare_worker()  # as every render worker is set up (one thread, freed memory reused)
-    if sections & {"speed", "ab", "stft", "accuracy"}:
+    if sections & {"speed", "ab", "against", "stft", "accuracy"}:
         bank_sections(args, sections)
     if "ripple" in sections:
         ripple_section()
+    if "planned" in sections:
+        planned_section(args.preset, args.planned)
 
 
 def bank_sections(args, sections):
@@ -283,9 +370,25 @@ def bank_sections(args, sections):
         if "ab" in sections:
             for label, r in (("circles", room), ("lines", lines)):
                 if r:
-                    ratio, t_new, t_old = ab_ratio(bank, r, rounds=max(3, args.repeats + 2))
+                    ratio, t_new, t_old = paired_ratio(
+                        bank, r, lambda x, h, t: render_moving(x, h, t, FS),
+                        lambda x, h, t: render_moving(x, h, t, FS, delays=None), rounds=max(3, args.repeats + 2))
                     print(f"delay-aware vs plain crossfade, one 10 s moving FOA source ({label}): {t_new:.1f} vs "
                           f"{t_old:.1f} ms, paired ratio {ratio:.3f}")
+
+        if "against" in sections:
+            try:
+                other = renderer_at(args.against)
+            except Exception as exc:  # no git, or no such commit here
+                print(f"against {args.against}: skipped ({str(exc).strip().splitlines()[-1] if str(exc).strip() else exc})")
+            else:
+                for label, r in (("circles", room), ("lines", lines)):
+                    if r:
+                        ratio, t_new, t_old = paired_ratio(
+                            bank, r, lambda x, h, t: render_moving(x, h, t, FS),
+                            lambda x, h, t: other.render_moving(x, h, t, FS), rounds=3, walks=12, seed=5)
+                        print(f"this renderer vs {args.against}'s, one 10 s moving FOA source ({label}): {t_new:.1f} vs "
+                              f"{t_old:.1f} ms, paired ratio {ratio:.3f}")
 
         rng = np.random.default_rng(2)
         tid, idx, times = sample_bank_path(bank, room, rng, 10.0, 20.0, direction=1)

@@ -243,9 +243,13 @@ def _steps_from(delays, h, p: np.ndarray):
             # A walk at constant distance (a circle) has the direct path at one delay: six
             # knots spread irregularly over the walk tell, for a fraction of the cost
             probe = np.unique(np.round(np.array([0.0, 0.21, 0.43, 0.58, 0.79, 1.0]) * (K - 1)).astype(int))
-            st, ok, _, _ = _delay_steps([h[k] for k in probe], p[probe])
-            if ok.all() and np.max(np.abs(np.cumsum(st, axis=0))) <= MIN_STEP / 2:
-                return None
+            # (unless the strongest channel's peaks there already lie samples apart: a line)
+            ref = int(np.argmax(np.abs(h[0]).max(axis=1)))
+            peaks = [int(np.argmax(np.abs(h[k][ref]))) for k in probe]
+            if max(peaks) - min(peaks) <= 2:
+                st, ok, _, _ = _delay_steps([h[k] for k in probe], p[probe])
+                if ok.all() and np.max(np.abs(np.cumsum(st, axis=0))) <= MIN_STEP / 2:
+                    return None
         steps, ok, ref, coincident = _delay_steps(h, p)
         # where the reference channel is not reliable the knots are crossfaded as they are; a
         # channel of a spaced array that is not reliable itself follows the reference

@@ -15,7 +15,7 @@ import numpy as np
 
 from .banks.paths import sample_bank_path, sample_bank_point
 from .banks.scenes import open_bank_cached, split_rooms
-from .choices import Motion, Spatial
+from .choices import Motion, PathKind, Spatial
 from .config import Config
 from .errors import GeometryError
 from .geometry import ArrayPose, Room, frame_centres, interpolate_positions, wrap_azimuth
@@ -166,8 +166,27 @@ def _place_sources(cfg, rng, wants: list, room: Room, centre, yaw):
     return out
 
 
-# A moving source's RIRs are computed at least every 100 ms and every 4 degrees.
-KNOT_HOP_S, KNOT_STEP_DEG = 0.1, 4.0
+# A moving source's RIRs are computed at least every 100 ms and every 4 degrees, and a
+# line pass's every KNOT_TRAVEL_M of its path (docs/acoustics.md, "Moving sources").
+KNOT_HOP_S, KNOT_STEP_DEG, KNOT_TRAVEL_M = 0.1, 4.0, 0.06
+
+
+def knot_hop(kind: str, speed: float, distance: float, r_h: float) -> float | None:
+    """Seconds between a simulated path's knots (None: the source does not move).
+
+    ``speed`` °/s seen from the array at ``distance`` m, ``r_h`` m the horizontal
+    distance: at most KNOT_HOP_S, KNOT_STEP_DEG of azimuth, and on a line KNOT_TRAVEL_M
+    of travel. The direct path is aligned between knots however far it moves (the
+    renderer warps the input); a line's early reflections slide against it in proportion
+    to the travel and comb at the knot midpoints, which closer knots keep shallow. An
+    arc's strongest reflections (floor, ceiling) keep their length.
+    """
+    if speed <= 0:
+        return None
+    hop = min(KNOT_HOP_S, KNOT_STEP_DEG / (speed * distance / r_h))
+    if kind != PathKind.ARC:
+        hop = min(hop, KNOT_TRAVEL_M / (math.radians(speed) * distance))
+    return hop
 
 
 def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want: "_Want", fc: np.ndarray):
@@ -179,16 +198,16 @@ def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want
     so the azimuth turns at ω·d/r_h. ``line``: a straight pass, perpendicular to azimuth
     az0 at horizontal distance r_h when closest (at a time drawn over the clip), at the
     speed v = ω·d that sweeps ω °/s there, the fastest it gets; the azimuth then turns at
-    most ω·d/r_h. Knots every min(100 ms, 4° / that azimuth rate): a knot at least every
-    100 ms and every 4° of azimuth.
+    most ω·d/r_h. Knots every :func:`knot_hop`: at least every 100 ms, every 4° of
+    azimuth and, on a line, every 6 cm of travel.
     """
     kind, speed, d, h = want.kind, want.speed, want.distance, want.height
     direction = 1 if rng.random() < 0.5 else -1
     dur = cfg.audio.duration
     az_rate = speed * d / r_h  # °/s of azimuth: the arc's, and the line's at its closest
-    hop = min(KNOT_HOP_S, KNOT_STEP_DEG / az_rate) if speed > 0 else dur
+    hop = knot_hop(kind, speed, d, r_h) or dur
     t = np.arange(0.0, dur + hop - 1e-9, hop)
-    if kind == "arc":  # PathKind.ARC
+    if kind == PathKind.ARC:
         a = np.radians(az0 + yaw + direction * az_rate * t)
         x, y = centre[0] + r_h * np.cos(a), centre[1] + r_h * np.sin(a)
         track = az0 + direction * az_rate * fc

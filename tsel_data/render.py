@@ -101,11 +101,9 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
                                 positions=None if fmt == "foa" else recipe.array.mics(), foa=fmt == "foa")
             images[k] = render_static(dry[k], g)[:, :n]
         elif s.path:
-            knots = np.asarray(s.path, dtype=np.float64)
-            rs = simulate_rirs(recipe.room, recipe.array, knots[:, 1:], fs, method=recipe.rir_method,
-                               seed=recipe.seed + 1 + k, one_source=True)
-            rt60 = rs.rt60_measured if rt60 is None else rt60
-            images[k] = render_moving(dry[k], rs.rirs, knots[:, 0], fs)[:, :n]
+            images[k], measured = path_image(recipe.room, recipe.array, s.path, dry[k], fs, recipe.rir_method,
+                                             recipe.seed + 1 + k)
+            rt60 = measured if rt60 is None else rt60
         elif s.bank is not None:
             b = s.bank
             rirs = _bank(recipe).views(b.room, b.trajectory, b.indices)
@@ -114,6 +112,20 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
             else:
                 images[k] = render_moving(dry[k], rirs, np.asarray(b.times), fs)[:, :n]
     return images, rt60
+
+
+def path_image(room, array, path, dry: np.ndarray, fs: int, method: str, seed: int) -> tuple[np.ndarray, float | None]:
+    """A simulated moving source's image [C, len(dry)] and the measured RT60 of its first
+    knot: ``path`` knots (t, x, y, z), room frame. The knots' image-source parts go through
+    the time-varying renderer; the late tail they share (hybrid) does not move with the
+    source, nor with its direct path's warp, so it is one static convolution."""
+    knots = np.asarray(path, dtype=np.float64)
+    rs = simulate_rirs(room, array, knots[:, 1:], fs, method=method, seed=seed, one_source=True, tail_apart=True)
+    n = len(dry)
+    image = render_moving(dry, rs.rirs, knots[:, 0], fs)[:, :n]
+    if rs.tail is not None:
+        image += render_static(dry, rs.tail)[:, :n]
+    return image, rs.rt60_measured
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,9 @@ the copies are a sample apart, 1.4 cm at 24 kHz), i.e. a level ripple at the kno
 whenever the source's distance changes (line passes, linear bank trajectories). Reflections
 keep the crossfade's behaviour: each moves at its own rate, so a part of the RIR ripples
 still where its reflections' delays change differently from the direct path's
-(docs/acoustics.md has measurements).
+(docs/acoustics.md has measurements; simulated paths pass only their image-source parts
+here, with knots closer on lines, and convolve the tail the knots share apart:
+render.path_image).
 
 How the model is computed: y = Σ_k h_k * S_{-σ_k}[w'_k · z], with σ_k = d_k - d_0 the
 knot shifts and z the input *warped* by the piecewise-linear shift σ: z(t) = x(t - s(t)),

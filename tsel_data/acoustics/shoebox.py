@@ -55,6 +55,7 @@ def shoebox_rirs(
     transition: float | None = None,
     length: float | None = None,
     one_source: bool = False,
+    tail_apart: bool = False,
 ) -> RirSet:
     """RIRs from room-frame ``points`` [S, 3] (m) to the channels of ``array``.
 
@@ -67,6 +68,8 @@ def shoebox_rirs(
     latest direct path + rt60 (the decay has reached about -60 dB). one_source: the
     points are knots of one moving source, so they share one tail realisation
     (independent tails, crossfaded between knots, would dip 3 dB at every midpoint).
+    tail_apart: with ``one_source``, return that tail apart (``RirSet.tail`` [C, L]) and
+    only the image-source parts in ``rirs`` [S, C, L_img] (L_img ≈ the transition + 50 ms).
 
     Returns a :class:`RirSet` with float32 rirs [S, C, L] and ``rt60_measured`` = T30 of
     point 0, channel 0 (omni / W), or None when the response is too short to measure.
@@ -107,7 +110,8 @@ def shoebox_rirs(
     # the image part only needs to be as long as the last image, plus the interpolator
     # and 50 ms for the DC blocker's response (time constant ~8 ms) to die out
     n_img = min(n_len, int(np.ceil((t_img + 0.05) * fs)) + FD_TAPS)
-    rirs = np.zeros((len(points), len(mics), n_len), dtype=np.float32)
+    apart = tail_apart and one_source and with_tail
+    rirs = np.zeros((len(points), len(mics), n_img if apart else n_len), dtype=np.float32)
     for s, p in enumerate(points):
         grid = new_grid(len(mics), n_img)
         for pos, order in image_chunks(dims, p, centre, radius, max_order):
@@ -120,11 +124,22 @@ def shoebox_rirs(
                     _add(grid, ch, r / c, amp / (4 * np.pi * r), fs, fade)
         rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), grid_to_signal(grid), axis=-1)
 
+    tail = None
     if with_tail:
         n_tails = 1 if one_source else len(points)
-        rirs += _late_tail(np.random.default_rng(seed), dims, a, rt60, mics, foa, fs, n_len, t_mix, n_tails)
-    measured = t30(rirs[0, 0], fs) if max_order != 0 else float("nan")
-    return RirSet(rirs, None if np.isnan(measured) else measured)
+        tail = _late_tail(np.random.default_rng(seed), dims, a, rt60, mics, foa, fs, n_len, t_mix, n_tails)
+        if apart:
+            tail = tail[0]
+        else:
+            rirs += tail
+            tail = None
+    if apart:  # point 0's whole response, summed as rirs += tail would (same float32 values)
+        first = tail[0].copy()
+        first[:n_img] = rirs[0, 0] + tail[0, :n_img]
+    else:
+        first = rirs[0, 0]
+    measured = t30(first, fs) if max_order != 0 else float("nan")
+    return RirSet(rirs, None if np.isnan(measured) else measured, tail)
 
 
 # --- absorption ---------------------------------------------------------------------

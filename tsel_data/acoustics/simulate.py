@@ -10,7 +10,7 @@ RIR_METHODS = values(RirMethod)
 
 
 def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: int = 0,
-                  one_source: bool = False) -> RirSet:
+                  one_source: bool = False, tail_apart: bool = False) -> RirSet:
     """RIRs from room-frame points to an array's channels.
 
     Parameters
@@ -29,11 +29,17 @@ def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: in
     one_source : bool
         The points are the knots of one moving source (one late-tail realisation shared
         by all knots).
+    tail_apart : bool
+        With ``one_source``: return that shared late tail in ``RirSet.tail`` and only the
+        early parts in ``rirs`` (methods without a shared tail return whole RIRs and no
+        tail). A moving source's tail does not move with it, so the renderer convolves it
+        once (render.spatial_images).
 
     Returns
     -------
     RirSet
-        ``rirs`` float32 [S, C, L], sample 0 = emission time; ``rt60_measured`` (s) or None.
+        ``rirs`` float32 [S, C, L], sample 0 = emission time; ``rt60_measured`` (s) or None;
+        ``tail`` (see ``tail_apart``) or None.
     """
     points = np.atleast_2d(np.asarray(points, dtype=np.float64))
     # each method is imported when used: pyroomacoustics and scipy.signal are slow to
@@ -45,5 +51,6 @@ def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: in
     if method in (RirMethod.ISM, RirMethod.HYBRID):
         from .shoebox import shoebox_rirs
 
-        return shoebox_rirs(room, array, points, fs, method=method, seed=seed, one_source=one_source)
+        return shoebox_rirs(room, array, points, fs, method=method, seed=seed, one_source=one_source,
+                            tail_apart=tail_apart)
     raise ValueError(f"unknown RIR method {method!r}; expected one of {RIR_METHODS}")

@@ -165,8 +165,9 @@ class SceneConfig:
     margin_solo: float = option(1.0, "heard at T: the target is the only active source on every label frame "
                                      "within this window centred on T", unit="s", gt=0.0, new=True)
     motion: str = option("static", "`static`, `moving` or `mixed`. In simulated rooms a moving source follows "
-                                   "`path`, with an RIR at least every 100 ms and every 4°; with a bank it walks a "
-                                   "bank trajectory, starting at a random point in a random direction",
+                                   "`path`, with an RIR at least every 100 ms, every 4° and, on a line, every 6 cm; "
+                                   "with a bank it walks a bank trajectory, starting at a random point in a random "
+                                   "direction",
                          choices=Motion)
     moving_fraction: float = option(0.5, "with `mixed`: probability that a directional source moves",
                                     unit="probability", ge=0.0, le=1.0)
