@@ -308,6 +308,18 @@ def test_a_setting_the_rooms_cannot_hold_is_named_by_tsel_check(demo_corpus):
               "--set", 'room.length=["uniform", 5.0, 6.0]', "--set", 'room.width=["uniform", 5.0, 6.0]')
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert "a line path at 40°/s (scene.speed)" in r.stderr and "sources.distance" in r.stderr
+    assert " m long in 10 s" in r.stderr  # how far it travels, to compare with the rooms
+
+
+def test_one_source_that_does_not_fit_is_not_blamed_on_separation(demo_corpus):
+    r = _tsel("check", "--preset", "demo", "--corpus-dir", demo_corpus, "--split", "train=4", "--split", "val=0",
+              "--split", "test=0", "--set", 'scene.scenario="directional+additive"', "--set", 'scene.motion="moving"',
+              "--set", 'scene.path="line"', "--set", "scene.speed=40.0", "--set", 'sources.distance=["uniform", 2.9, 3.0]',
+              "--set", 'room.length=["uniform", 5.0, 6.0]', "--set", 'room.width=["uniform", 5.0, 6.0]')
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
+    assert lines and all("min_separation" not in ln for ln in lines), r.stderr
+    assert "m long in 10 s" in lines[0] and "lower the settings named" in lines[0]
 
 
 def _tsel(*args):

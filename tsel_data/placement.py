@@ -35,9 +35,12 @@ class _Want:
     kind: str = ""  # PathKind, for a moving source
     speed: float = 0.0  # °/s great-circle, for a moving source
 
-    def describe(self) -> str:
+    def describe(self, duration: float) -> str:
         motion = f"a {self.kind} path at {self.speed:g}°/s (scene.speed), " if self.moving else ""
-        return f"{motion}{self.distance:.2f} m from the array (sources.distance), {self.height:.2f} m high"
+        text = f"{motion}{self.distance:.2f} m from the array (sources.distance), {self.height:.2f} m high"
+        if self.moving and self.kind == PathKind.LINE:  # v = speed·distance, straight on
+            text += f", {math.radians(self.speed) * self.distance * duration:.1f} m long in {duration:g} s"
+        return text
 
 
 def _wants(cfg: Config, rng, spatial: list[str]) -> list[_Want | None]:
@@ -85,12 +88,15 @@ def place(cfg: Config, rng, spatial: list[str], split: str, index: int):
             places = _place_sources(cfg, rng, wants, room, centre, yaw)
             if places is not None:
                 return room, ArrayPose(fmt, centre, yaw, side), places
-    shown = "; ".join(f"source {k}: {w.describe()}" for k, w in enumerate(wants) if w is not None)
+    shown = "; ".join(f"source {k}: {w.describe(cfg.audio.duration)}" for k, w in enumerate(wants) if w is not None)
+    if sum(w is not None for w in wants) > 1:
+        apart = f", {cfg.scene.min_separation}° apart (scene.min_separation),"
+        lower = f"scene.min_separation{_separation_hint(spatial)} or the settings named"
+    else:
+        apart, lower = "", "the settings named"
     raise GeometryError(
-        f"scene {split}/{index}: could not place its sources ({shown}), {cfg.scene.min_separation}° apart "
-        f"(scene.min_separation), in {ROOM_TRIES} rooms drawn from room.length/width/height; lower "
-        f"scene.min_separation{_separation_hint(spatial)} or the settings named, lower the wall margins, or "
-        f"enlarge the rooms"
+        f"scene {split}/{index}: could not place its sources ({shown}){apart} in {ROOM_TRIES} rooms drawn from "
+        f"room.length/width/height; lower {lower}, lower the wall margins, or enlarge the rooms"
     )
 
 
