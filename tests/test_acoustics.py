@@ -24,6 +24,25 @@ def render_impulses(delays, weights, length):
     return grid_to_signal(grid)
 
 
+def test_impulses_placed_tap_by_tap_equal_the_polyphase_grid():
+    """grid_to_signal's two ways give one sum: few impulses placed tap by tap, many through
+    the filtered phase rows (the leading taps cut at 0, nothing beyond the length)."""
+    from tsel_data.acoustics.ism import _filtered, _placed
+
+    rng = np.random.default_rng(3)
+    length = 900
+    for n in (1, 40, 3000):
+        d = np.concatenate([[0.0, 0.3, 5.7, length - 1.2], rng.uniform(0, length + 20, n)])
+        w = rng.standard_normal(len(d))
+        grid = new_grid(1, length)
+        add_impulses(grid, 0, d, w)
+        dd, ww = grid.channel(0)
+        assert dd.max() < length  # beyond the grid: ignored
+        placed, filtered = _placed(dd, ww, length), _filtered([(dd, ww)], length)[0]
+        np.testing.assert_allclose(placed, filtered, rtol=0, atol=1e-12 * np.abs(filtered).max())
+        np.testing.assert_array_equal(grid_to_signal(grid)[0], placed if n < 3000 else filtered)
+
+
 def coherence(x, y, fs, nperseg=512):
     """Real part of the complex coherence Re{S_xy / sqrt(S_xx S_yy)} (Welch): (frequencies Hz, coherence).
     A diffuse field gives sinc(k d) between two omnis d metres apart."""

@@ -174,7 +174,7 @@ def _place_sources(cfg, rng, wants: list, room: Room, centre, yaw):
 
 # A moving source's RIRs are computed at least every 100 ms and every 4 degrees, and a
 # line pass's every KNOT_TRAVEL_M of its path (docs/acoustics.md, "Moving sources").
-KNOT_HOP_S, KNOT_STEP_DEG, KNOT_TRAVEL_M = 0.1, 4.0, 0.06
+KNOT_HOP_S, KNOT_STEP_DEG, KNOT_TRAVEL_M = 0.1, 4.0, 0.03
 
 
 def knot_hop(kind: str, speed: float, distance: float, r_h: float) -> float | None:
@@ -205,7 +205,7 @@ def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want
     az0 at horizontal distance r_h when closest (at a time drawn over the clip), at the
     speed v = ω·d that sweeps ω °/s there, the fastest it gets; the azimuth then turns at
     most ω·d/r_h. Knots every :func:`knot_hop`: at least every 100 ms, every 4° of
-    azimuth and, on a line, every 6 cm of travel.
+    azimuth and, on a line, every 3 cm of travel.
     """
     kind, speed, d, h = want.kind, want.speed, want.distance, want.height
     direction = 1 if rng.random() < 0.5 else -1

@@ -115,42 +115,94 @@ def _fd_bank_spectrum(n_fft: int) -> np.ndarray:
     return sfft.rfft(_fd_bank(), n=n_fft, axis=-1, workers=1)
 
 
-def new_grid(n_ch: int, length: int) -> np.ndarray:
-    """Empty accumulation grid [C, FD_PHASES + 1, length] for :func:`add_impulses`."""
-    return np.zeros((n_ch, FD_PHASES + 1, length))
+class ImpulseGrid:
+    """Impulses gathered per channel (:func:`new_grid`, :func:`add_impulses`) until
+    :func:`grid_to_signal` renders them, each through the interpolator at its delay."""
+
+    __slots__ = ("length", "delays", "weights")
+
+    def __init__(self, n_ch: int, length: int):
+        self.length = int(length)
+        self.delays: list[list[np.ndarray]] = [[] for _ in range(n_ch)]
+        self.weights: list[list[np.ndarray]] = [[] for _ in range(n_ch)]
+
+    def channel(self, ch: int) -> tuple[np.ndarray, np.ndarray]:
+        """(delays, weights) of channel ``ch``, float64."""
+        if not self.delays[ch]:
+            return np.zeros(0), np.zeros(0)
+        return np.concatenate(self.delays[ch]), np.concatenate(self.weights[ch])
 
 
-def add_impulses(grid: np.ndarray, ch: int, delays: np.ndarray, weights: np.ndarray) -> None:
-    """Accumulate impulses of ``weights`` [N] at fractional ``delays`` [N] (samples, ≥ 0)
-    into channel ``ch`` of ``grid`` (in place). Delays beyond the grid are ignored.
+def new_grid(n_ch: int, length: int) -> ImpulseGrid:
+    """An empty grid of ``n_ch`` channels of ``length`` samples for :func:`add_impulses`."""
+    return ImpulseGrid(n_ch, length)
 
-    Polyphase: each impulse is split linearly between the two tabulated fractional
-    phases around its delay and summed with ``np.bincount`` into the [phases, samples]
-    grid; :func:`grid_to_signal` filters each phase row with its filter. Cost O(N) here
-    plus O(phases · L log L) once, independent of the tap count.
+
+def add_impulses(grid: ImpulseGrid, ch: int, delays: np.ndarray, weights: np.ndarray) -> None:
+    """Add impulses of ``weights`` [N] at fractional ``delays`` [N] (samples, ≥ 0) to
+    channel ``ch`` of ``grid``. Delays beyond the grid are ignored."""
+    d = np.asarray(delays, dtype=np.float64).reshape(-1)
+    w = np.broadcast_to(np.asarray(weights, dtype=np.float64), d.shape)
+    keep = d < grid.length
+    grid.delays[ch].append(d[keep])
+    grid.weights[ch].append(w[keep])
+
+
+def grid_to_signal(grid: ImpulseGrid) -> np.ndarray:
+    """Signals [C, L] float64: ``Σ_i w_i h(n - d_i)`` with h the Kaiser-windowed sinc of
+    FD_TAPS taps centred on d_i (no latency: the leading taps of impulses within
+    FD_TAPS/2 samples of 0 are cut), its fractional delay linear between the FD_PHASES + 1
+    tabulated ones around d_i.
+
+    Two ways to the same sum (to float64 rounding), whichever is cheaper: few impulses
+    (an image-source early part: hundreds per channel) are placed tap by tap; many (a
+    whole reverberant ISM response: up to millions) are split between the two tabulated
+    phases around each delay into a [phases, samples] grid (``np.bincount``) whose rows
+    are filtered by FFT, O(phases · L log L) whatever their number.
     """
-    q, length = grid.shape[1] - 1, grid.shape[2]
-    d = np.asarray(delays, dtype=np.float64)
-    w = np.asarray(weights, dtype=np.float64)
-    keep = d < length
-    if not keep.all():
-        d, w = d[keep], w[keep]
+    k, length = FD_TAPS, grid.length
+    chans = [grid.channel(c) for c in range(len(grid.delays))]
+    n_imp = sum(len(d) for d, _ in chans)
+    n_fft = sfft.next_fast_len(length + k - 1, real=True)
+    # ~cost in multiply-adds: taps placed one by one vs the phase rows' transforms
+    if n_imp * k * 3 <= len(chans) * (FD_PHASES + 1) * n_fft * np.log2(n_fft):
+        return np.stack([_placed(d, w, length) for d, w in chans]) if chans else np.zeros((0, length))
+    return _filtered(chans, length)
+
+
+def _split(d: np.ndarray):
+    """(integer part, lower tabulated phase, weight of the upper phase) of delays ``d``."""
+    q = FD_PHASES
     n0 = np.floor(d)
     ph = (d - n0) * q
     p0 = np.floor(ph)
-    frac = ph - p0
-    idx = p0.astype(np.int64) * length + n0.astype(np.int64)
+    return n0.astype(np.int64), p0.astype(np.int64), ph - p0
+
+
+def _placed(d: np.ndarray, w: np.ndarray, length: int) -> np.ndarray:
+    """One channel, tap by tap: impulse i adds w_i · ((1 - f) h_p + f h_{p+1}) from n0_i - K/2 + 1."""
+    k, first = FD_TAPS, FD_TAPS // 2 - 1
+    n0, p0, frac = _split(d)
+    bank = _fd_bank()
+    taps = bank[p0] * (w * (1.0 - frac))[:, None]
+    taps += bank[p0 + 1] * (w * frac)[:, None]
+    at = n0[:, None] + (np.arange(k) - first)
+    inside = (at >= 0) & (at < length)
+    return np.bincount(at[inside], taps[inside], minlength=length)
+
+
+def _filtered(chans, length: int) -> np.ndarray:
+    """All channels through the polyphase grid: each impulse split between the two
+    tabulated phases around its delay, each phase row filtered with its filter by FFT."""
+    k, q = FD_TAPS, FD_PHASES
     size = (q + 1) * length
-    flat = grid[ch].reshape(-1)
-    flat += np.bincount(idx, w * (1.0 - frac), minlength=size)
-    flat += np.bincount(idx + length, w * frac, minlength=size)
-
-
-def grid_to_signal(grid: np.ndarray) -> np.ndarray:
-    """Signals [C, L] float64 from an accumulation grid: ``Σ_i w_i h(n - d_i)`` with h the
-    Kaiser-windowed sinc of FD_TAPS taps centred on d_i (no latency: the leading taps
-    of impulses within FD_TAPS/2 samples of 0 are cut)."""
-    k, length = FD_TAPS, grid.shape[2]
+    grid = np.zeros((len(chans), q + 1, length))
+    for c, (d, w) in enumerate(chans):
+        n0, p0, frac = _split(d)
+        idx = p0 * length + n0
+        flat = grid[c].reshape(-1)
+        flat += np.bincount(idx, w * (1.0 - frac), minlength=size)
+        flat += np.bincount(idx + length, w * frac, minlength=size)
     n_fft = sfft.next_fast_len(length + k - 1, real=True)
     spec = sfft.rfft(grid, n=n_fft, axis=-1, workers=1)
     out = sfft.irfft(np.einsum("cpf,pf->cf", spec, _fd_bank_spectrum(n_fft)), n=n_fft, axis=-1, workers=1)
