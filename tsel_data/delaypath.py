@@ -158,7 +158,7 @@ def _delay_steps(h, p: np.ndarray):
     K = len(h)
     C, L = h[0].shape
     W0, W1, R = _WIN[0], _WIN[1], 64
-    ref = int(np.argmax(np.abs(h[0]).max(axis=1)))
+    ref = _reference_channel(h)
     # The reference channel's peak is the direct path. Probing four knots bounds where the
     # peaks are; every knot's is then found in one window around them (widened, once, if a
     # peak is at its edge).
@@ -224,6 +224,11 @@ def _delay_steps(h, p: np.ndarray):
     return steps, reliable, ref, coincident
 
 
+def _reference_channel(h) -> int:
+    """The channel with the strongest first knot (W for FOA): its peak is the direct path."""
+    return int(np.argmax(np.abs(h[0]).max(axis=1)))
+
+
 @lru_cache(maxsize=4)
 def _hann(n: int) -> np.ndarray:
     return np.hanning(n + 2)[1:-1].astype(np.float32)
@@ -244,7 +249,7 @@ def _steps_from(delays, h, p: np.ndarray):
             # knots spread irregularly over the walk tell, for a fraction of the cost
             probe = np.unique(np.round(np.array([0.0, 0.21, 0.43, 0.58, 0.79, 1.0]) * (K - 1)).astype(int))
             # (unless the strongest channel's peaks there already lie samples apart: a line)
-            ref = int(np.argmax(np.abs(h[0]).max(axis=1)))
+            ref = _reference_channel(h)
             peaks = [int(np.argmax(np.abs(h[k][ref]))) for k in probe]
             if max(peaks) - min(peaks) <= 2:
                 st, ok, _, _ = _delay_steps([h[k] for k in probe], p[probe])

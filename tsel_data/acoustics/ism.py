@@ -166,8 +166,8 @@ def grid_to_signal(grid: ImpulseGrid) -> np.ndarray:
     n_fft = sfft.next_fast_len(length + k - 1, real=True)
     # ~cost in multiply-adds: taps placed one by one vs the phase rows' transforms
     if n_imp * k * 3 <= len(chans) * (FD_PHASES + 1) * n_fft * np.log2(n_fft):
-        return np.stack([_placed(d, w, length) for d, w in chans]) if chans else np.zeros((0, length))
-    return _filtered(chans, length)
+        return np.stack([_placed(d, w, length) for d, w in chans])
+    return _filtered(chans, length, n_fft)
 
 
 def _split(d: np.ndarray):
@@ -191,9 +191,10 @@ def _placed(d: np.ndarray, w: np.ndarray, length: int) -> np.ndarray:
     return np.bincount(at[inside], taps[inside], minlength=length)
 
 
-def _filtered(chans, length: int) -> np.ndarray:
+def _filtered(chans, length: int, n_fft: int) -> np.ndarray:
     """All channels through the polyphase grid: each impulse split between the two
-    tabulated phases around its delay, each phase row filtered with its filter by FFT."""
+    tabulated phases around its delay, each phase row filtered with its filter by
+    ``n_fft``-point FFTs (at least length + FD_TAPS - 1)."""
     k, q = FD_TAPS, FD_PHASES
     size = (q + 1) * length
     grid = np.zeros((len(chans), q + 1, length))
@@ -203,7 +204,6 @@ def _filtered(chans, length: int) -> np.ndarray:
         flat = grid[c].reshape(-1)
         flat += np.bincount(idx, w * (1.0 - frac), minlength=size)
         flat += np.bincount(idx + length, w * frac, minlength=size)
-    n_fft = sfft.next_fast_len(length + k - 1, real=True)
     spec = sfft.rfft(grid, n=n_fft, axis=-1, workers=1)
     out = sfft.irfft(np.einsum("cpf,pf->cf", spec, _fd_bank_spectrum(n_fft)), n=n_fft, axis=-1, workers=1)
     # the centre tap (offset 0) is tap K/2 - 1, so an impulse at n0 peaks at n0 + K/2 - 1

@@ -124,20 +124,16 @@ def shoebox_rirs(
                     _add(grid, ch, r / c, amp / (4 * np.pi * r), fs, fade)
         rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), grid_to_signal(grid), axis=-1)
 
-    tail = None
+    tail, first = None, rirs[0, 0]
     if with_tail:
-        n_tails = 1 if one_source else len(points)
-        tail = _late_tail(np.random.default_rng(seed), dims, a, rt60, mics, foa, fs, n_len, t_mix, n_tails)
+        late = _late_tail(np.random.default_rng(seed), dims, a, rt60, mics, foa, fs, n_len, t_mix,
+                          1 if one_source else len(points))
         if apart:
-            tail = tail[0]
+            tail = late[0]
+            first = tail[0].copy()  # point 0's whole response: the same float32 sums as rirs += late
+            first[:n_img] += rirs[0, 0]
         else:
-            rirs += tail
-            tail = None
-    if apart:  # point 0's whole response, summed as rirs += tail would (same float32 values)
-        first = tail[0].copy()
-        first[:n_img] = rirs[0, 0] + tail[0, :n_img]
-    else:
-        first = rirs[0, 0]
+            rirs += late
     measured = t30(first, fs) if max_order != 0 else float("nan")
     return RirSet(rirs, None if np.isnan(measured) else measured, tail)
 
