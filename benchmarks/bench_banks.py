@@ -254,7 +254,8 @@ def ripple_cases():
     and banks)."""
     from tsel_data.acoustics import simulate_rirs
     from tsel_data.geometry import cart_to_sph, room_to_array
-    from tsel_data.geometry import ArrayPose, Room
+    from tsel_data.geometry import Room
+    from tsel_data.receivers import ArrayPose
 
     room, centre = Room((10.0, 9.0, 6.0), 0.4), (3.0, 4.5, 1.2)
     t = np.arange(0.0, 6.1 - 1e-9, 0.1)

@@ -44,8 +44,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 from tsel_data.acoustics import simulate_rirs  # noqa: E402
 from tsel_data.acoustics.metrics import t30  # noqa: E402
-from tsel_data.geometry import CHANNEL_NAMES, array_to_room  # noqa: E402
-from tsel_data.geometry import ArrayPose, Room
+from tsel_data.geometry import Room, array_to_room  # noqa: E402
+from tsel_data.receivers import ArrayPose  # noqa: E402
 from tsel_data.recipe import SceneRecipe, Source  # noqa: E402
 
 FS = 24000
@@ -154,7 +154,7 @@ def run_scenes(args) -> dict:
     if renderer == "ours":
         render(recipes[0])
     attrs = {"fs": FS, "label_hop": 0.1, "format": recipes[0].array.format,
-             "channel_names": list(CHANNEL_NAMES[recipes[0].array.format])}
+             "channel_names": list(recipes[0].array.channel_names())}
     t0 = time.perf_counter()
     buf = []
     for r in recipes:

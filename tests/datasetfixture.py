@@ -12,7 +12,8 @@ import os
 
 import numpy as np
 
-from tsel_data.geometry import array_to_room, foa_gains, mic_positions, sph_to_cart, wrap_azimuth
+from tsel_data.geometry import array_to_room, foa_gains, sph_to_cart, wrap_azimuth
+from tsel_data.receivers import mic_positions
 from tsel_data.store.dataset import dataset_doc, shard_attrs
 from tsel_data.store.records import SceneRecord
 from tsel_data.atomic import write_json

@@ -30,26 +30,6 @@ def test_sph_cart_round_trip():
     np.testing.assert_allclose(d2, d, atol=1e-9)
 
 
-def test_mic4_layout():
-    side = 0.12
-    m = g.mic4_positions(side)
-    r = side / np.sqrt(2)
-    expected = r * np.array([[np.cos(np.radians(a)), np.sin(np.radians(a)), 0] for a in (45, 135, 225, 315)])
-    np.testing.assert_allclose(m, expected, atol=1e-12)
-    # neighbours are `side` apart; 0 front-left, 1 back-left, 2 back-right, 3 front-right
-    assert np.linalg.norm(m[0] - m[1]) == pytest.approx(side)
-    assert m[0][0] > 0 and m[0][1] > 0 and m[1][0] < 0 and m[1][1] > 0
-    assert m[2][0] < 0 and m[2][1] < 0 and m[3][0] > 0 and m[3][1] < 0
-
-
-def test_tetra_layout():
-    t = g.tetra_positions()
-    az, el, r = g.cart_to_sph(t)
-    np.testing.assert_allclose(r, 0.042)
-    np.testing.assert_allclose(az, [45, -45, 135, -135], atol=1e-9)
-    np.testing.assert_allclose(el, [35, -35, -35, 35], atol=1e-9)
-
-
 def test_foa_gains_sn3d():
     w, y, z, x = g.foa_gains(90.0, 0.0)
     assert (w, y, z, x) == pytest.approx((1.0, 1.0, 0.0, 0.0), abs=1e-12)

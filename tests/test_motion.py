@@ -74,7 +74,8 @@ def test_moving_source_audio_comes_from_its_labels(kind, small_config, tmp_path)
     frame's start and end (the frame's audio is a crossfade of the RIRs of the knots
     there, 4 degrees apart at 40 deg/s: a label one frame late is 4 degrees off, and fails)."""
     from tsel_data.acoustics import SOUND_SPEED
-    from tsel_data.geometry import mic_positions, sph_to_cart
+    from tsel_data.geometry import sph_to_cart
+    from tsel_data.receivers import mic_positions
     from tsel_data.render import spatial_images
     from test_render_physics import _lag
 
@@ -196,7 +197,8 @@ def test_tau_db_with_room_numbers(tmp_path, demo_corpus):
 def test_moving_source_knots_share_one_late_tail():
     """Independent tails per knot would be crossfaded into a 3 dB dip between knots."""
     from tsel_data.acoustics import simulate_rirs
-    from tsel_data.geometry import ArrayPose, Room
+    from tsel_data.geometry import Room
+    from tsel_data.receivers import ArrayPose
 
     room, array = Room((8.0, 7.0, 3.5), 0.6), ArrayPose("mic4", (4.0, 3.5, 1.2), 0.0, 0.1)
     knots = np.array([[6.0, 3.5, 1.5], [5.9, 4.1, 1.5], [5.6, 4.7, 1.5]])

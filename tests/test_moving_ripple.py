@@ -16,7 +16,8 @@ from tsel_data.acoustics import SOUND_SPEED, simulate_rirs
 from tsel_data.acoustics.metrics import RIPPLE_BANDS as BANDS
 from tsel_data.acoustics.metrics import knot_ripple
 from tsel_data.acoustics.shoebox import shoebox_rirs
-from tsel_data.geometry import ArrayPose, Room, array_to_room, cart_to_sph, room_to_array
+from tsel_data.geometry import Room, array_to_room, cart_to_sph, room_to_array
+from tsel_data.receivers import ArrayPose
 from tsel_data.timevarying import render_moving
 
 FS = 24000

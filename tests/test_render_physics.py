@@ -4,8 +4,8 @@ import pytest
 
 from tsel_data.acoustics import SOUND_SPEED
 from tsel_data.acoustics.pyroom import pyroom_rirs
-from tsel_data.geometry import mic_positions, sph_to_cart
-from tsel_data.geometry import ArrayPose, Room
+from tsel_data.geometry import Room, sph_to_cart
+from tsel_data.receivers import ArrayPose, mic_positions
 from tsel_data.recipe import SceneRecipe, Source
 from tsel_data.render import convolve, source_labels
 
@@ -107,7 +107,7 @@ def test_a_diffuse_additive_source_has_diffuse_field_statistics(fmt):
     is 1 everywhere); FOA W, Y, Z, X are uncorrelated with energies 1 : 1/3 : 1/3 : 1/3;
     the clip's timing stays within a label frame."""
     from tsel_data.acoustics.late import diffuse_coherence, diffuse_filters
-    from tsel_data.geometry import mic4_positions
+    from tsel_data.receivers import mic4_positions
     from tsel_data.timevarying import render_static
 
     fs = 24000

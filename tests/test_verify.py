@@ -7,7 +7,7 @@ from click.testing import CliRunner
 from datasetfixture import make_dataset, plane_wave
 from tsel_data.cli.verify import verify_cmd
 from tsel_data.features import gcc_phat, mic_pairs
-from tsel_data.geometry import mic4_positions
+from tsel_data.receivers import mic4_positions
 from tsel_data.verify import doa_maps, verify_dataset
 
 

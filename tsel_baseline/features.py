@@ -31,6 +31,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from tsel_data.features import gcc_phat, mic_pairs, stft
+from tsel_data.receivers import receiver
 
 SPEED_OF_SOUND = 343.0  # m/s
 FOA_CHANNELS = ("W", "Y", "Z", "X")  # ACN order (docs/format.md)
@@ -65,14 +66,15 @@ class FeatureConfig:
     xspec_fmax: float = 4000.0
 
     def resolve(self, fmt: str) -> list[str]:
-        """The spatial features computed for an array format ("mic4", "foa", "tetra")."""
+        """The spatial features computed for a receiver (its name, e.g. "mic4", "foa")."""
+        ambisonic = receiver(fmt).localizer == "intensity"
         if self.spatial == "auto":
-            return ["iv" if fmt == "foa" else "gcc"]
+            return ["iv" if ambisonic else "gcc"]
         names = self.spatial.split("+")
         bad = [n for n in names if n not in SPATIAL]
         if bad or len(set(names)) != len(names):
             raise ValueError(f"spatial features are 'gcc', 'iv', 'xspec' (joined by '+') or 'auto', got {self.spatial!r}")
-        if "iv" in names and fmt != "foa":
+        if "iv" in names and not ambisonic:
             raise ValueError(f"intensity vectors need FOA audio; this dataset is {fmt!r} (use spatial='gcc')")
         return names
 

@@ -10,12 +10,41 @@ from __future__ import annotations
 from enum import StrEnum
 
 
-class ArrayFormat(StrEnum):
-    """Microphone array formats (docs/format.md)."""
+class ReceiverModel(StrEnum):
+    """How a receiver's channels hear a wave (receivers/spec.py; acoustics/capsules.py).
+    The receivers themselves are a registry (tsel_data.receivers), not a set of values."""
 
-    MIC4 = "mic4"
-    FOA = "foa"
-    TETRA = "tetra"
+    SPACED = "spaced"
+    AMBISONIC = "ambisonic"
+    SPHERE = "sphere"
+    HRTF = "hrtf"
+    MATRIX = "matrix"
+
+
+class Baffle(StrEnum):
+    """``array.baffle``: capsules of a sphere array on a rigid sphere (scattering) or open."""
+
+    RIGID = "rigid"
+    OPEN = "open"
+
+
+class Pattern(StrEnum):
+    """First-order capsule patterns (receivers/spec.py, PATTERN_ALPHA)."""
+
+    OMNI = "omni"
+    SUBCARDIOID = "subcardioid"
+    CARDIOID = "cardioid"
+    SUPERCARDIOID = "supercardioid"
+    HYPERCARDIOID = "hypercardioid"
+    FIGURE8 = "figure8"
+
+
+class HrtfInterpolation(StrEnum):
+    """``array.hrtf_interpolation``: each image source through the nearest measured HRIR,
+    or the HRIRs of the measured triangle around its direction, weighted."""
+
+    NEAREST = "nearest"
+    INTERPOLATED = "interpolated"
 
 
 class RirMethod(StrEnum):
@@ -153,6 +182,6 @@ class SimilarityMeasure(StrEnum):
     EMBEDDINGS = "embeddings"
 
 
-def values(choices: type[StrEnum]) -> tuple[str, ...]:
-    """The plain string values of an enumeration, in declaration order."""
-    return tuple(m.value for m in choices)
+def values(choices) -> tuple[str, ...]:
+    """The plain string values of an enumeration (or of a tuple of names), in declaration order."""
+    return tuple(m.value if isinstance(m, StrEnum) else str(m) for m in choices)

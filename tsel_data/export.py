@@ -37,6 +37,7 @@ from .audio import save_wav
 from .choices import WavSubtype, values
 from .errors import DatasetError, TselError
 from .progress import bar
+from .receivers import receiver
 from .store.dataset import load_dataset_doc
 from .store.reader import list_splits, open_dataset
 
@@ -103,7 +104,7 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
             raise DatasetError(f"{root}: split {split!r} would be fold {fold}; DCASE names hold one digit (1-9)")
         with open_dataset(root, split) as ds:
             fmt, n_scenes = ds.format, len(ds)
-            audio_dir = os.path.join(out, f"{'foa' if fmt == 'foa' else 'mic'}_dev", f"dev-{split}-tsel")
+            audio_dir = os.path.join(out, f"{receiver(fmt).export_folder}_dev", f"dev-{split}-tsel")
             meta_dir = os.path.join(out, "metadata_dev", f"dev-{split}-tsel")
             os.makedirs(audio_dir, exist_ok=True)
             os.makedirs(meta_dir, exist_ok=True)

@@ -1,5 +1,5 @@
-"""Coordinate and label conventions (binding: docs/format.md), array layouts, and the
-geometry types every stage shares.
+"""Coordinate and label conventions (binding: docs/format.md) and the geometry types every
+stage shares. The receivers themselves (array layouts, channels) are tsel_data.receivers.
 
 Array frame: right-handed, origin at the array centre, x = front, y = left, z = up.
 Azimuth: degrees counter-clockwise from +x seen from above, wrapped to [-180, 180).
@@ -16,21 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .choices import ArrayFormat, values
-
 Vec3 = tuple[float, float, float]
-
-FORMATS = values(ArrayFormat)
-
-CHANNEL_NAMES = {
-    "mic4": ("mic0_front_left", "mic1_back_left", "mic2_back_right", "mic3_front_right"),
-    "foa": ("W", "Y", "Z", "X"),
-    "tetra": ("M1", "M2", "M3", "M4"),
-}
-
-# DCASE MIC format (Eigenmike capsules 6, 10, 26, 22): (azimuth, elevation) in degrees.
-TETRA_ANGLES = ((45.0, 35.0), (-45.0, -35.0), (135.0, -35.0), (-135.0, 35.0))
-TETRA_RADIUS = 0.042  # m
 
 SOUND_SPEED = 343.0  # m/s, every simulator and localizer of the package
 
@@ -41,39 +27,6 @@ class Room:
 
     dims: Vec3
     rt60: float
-
-
-@dataclass(frozen=True)
-class ArrayPose:
-    """Where the array is and how it is turned.
-
-    format: ``mic4`` | ``foa`` | ``tetra``. centre: room frame (m). yaw: degrees, the
-    direction of the array's +x axis in the room frame. side: mic4 side length (m).
-    """
-
-    format: str
-    centre: Vec3
-    yaw: float
-    side: float | None = None
-
-    def mics(self) -> np.ndarray:
-        """Channel positions [C, 3] in the array frame (metres)."""
-        return mic_positions(self.format, self.side)
-
-    def room_mic_points(self) -> list[Vec3]:
-        """Capsule positions in the room frame, in plain Python (validation runs once per
-        planned scene, where numpy's per-call cost dominates). FOA: the centre."""
-        c, s = math.cos(math.radians(self.yaw)), math.sin(math.radians(self.yaw))
-        if self.format == "mic4":
-            r = self.side / math.sqrt(2.0)
-            local = [(r * math.cos(math.radians(45 + 90 * k)), r * math.sin(math.radians(45 + 90 * k)), 0.0)
-                     for k in range(4)]
-        elif self.format == "tetra":
-            local = tetra_positions().tolist()
-        else:
-            local = [(0.0, 0.0, 0.0)]
-        x0, y0, z0 = self.centre
-        return [(x0 + c * x - s * y, y0 + s * x + c * y, z0 + z) for x, y, z in local]
 
 
 def wrap_azimuth(az):
@@ -113,40 +66,6 @@ def room_to_array(p_room, centre, yaw_deg: float) -> np.ndarray:
 def array_to_room(p_array, centre, yaw_deg: float) -> np.ndarray:
     """Array-frame points [..., 3] -> room frame."""
     return np.asarray(p_array, dtype=np.float64) @ rotz(yaw_deg).T + np.asarray(centre, dtype=np.float64)
-
-
-def mic4_positions(side: float) -> np.ndarray:
-    """Square array of side ``side`` (m): mic k at azimuth 45° + 90°·k, radius side/√2.
-
-    0 front-left, 1 back-left, 2 back-right, 3 front-right. Returns [4, 3], array frame.
-    """
-    az = 45.0 + 90.0 * np.arange(4)
-    return sph_to_cart(az, 0.0, side / np.sqrt(2.0))
-
-
-def tetra_positions(radius: float = TETRA_RADIUS) -> np.ndarray:
-    """DCASE MIC capsule positions [4, 3] on a sphere of ``radius`` (array frame)."""
-    az, el = np.array(TETRA_ANGLES).T
-    return sph_to_cart(az, el, radius)
-
-
-def mic_positions(fmt: str, side: float | None = None) -> np.ndarray:
-    """Channel positions [C, 3] in the array frame; FOA channels sit at the centre."""
-    if fmt == "mic4":
-        return mic4_positions(side)
-    if fmt == "tetra":
-        return tetra_positions()
-    if fmt == "foa":
-        return np.zeros((4, 3))
-    raise ValueError(f"unknown array format {fmt!r}; expected one of {FORMATS}")
-
-
-def array_radius(fmt: str, side: float | None = None) -> float:
-    """Distance (m) of the farthest capsule from the array centre: mic4 side/√2, tetra
-    :data:`TETRA_RADIUS`, FOA 0 (coincident)."""
-    if fmt == "mic4":
-        return float(side) / math.sqrt(2.0)
-    return TETRA_RADIUS if fmt == "tetra" else 0.0
 
 
 def foa_gains(az, el) -> np.ndarray:

@@ -148,7 +148,7 @@ def write_stereo(scene: Scene, path: str) -> str:
     if scene.audio is None:
         raise TselError(f"{scene.scene_id}: read with audio=False; no audio to write")
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    save_wav(path, stereo_preview(scene.audio, scene.format).T, scene.fs)
+    save_wav(path, stereo_preview(scene.audio, scene.format, scene.mic_positions).T, scene.fs)
     return path
 
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from .config import Config, load_config
 from .errors import ConfigError
-from .geometry import CHANNEL_NAMES
+from .config.receiver import array_pose
 from .plan import prepare_views, plan_scene
 from .recipe import SceneRecipe
 from .render import render_scene
@@ -81,7 +81,7 @@ class SceneSource:
         self.cfg, self.split, self.view = cfg, split, views[split]
         self.home = layout.root
         self.fs, self.label_hop, self.format = cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format
-        self.channel_names = list(CHANNEL_NAMES[self.format])
+        self.channel_names = list(array_pose(cfg).channel_names())
         self.epoch = 0
         self.set_epoch(epoch)
 

@@ -17,8 +17,10 @@ from .banks.paths import sample_bank_path, sample_bank_point
 from .banks.scenes import open_bank_cached, split_rooms
 from .choices import Motion, PathKind, Spatial
 from .config import Config
+from .config.receiver import array_pose
 from .errors import GeometryError
-from .geometry import ArrayPose, Room, frame_centres, interpolate_positions, wrap_azimuth
+from .geometry import Room, frame_centres, interpolate_positions, wrap_azimuth
+from .receivers import ArrayPose, receiver
 from .recipe import BankRef, BankWalk
 
 MAX_TRIES = 200
@@ -71,12 +73,12 @@ def place(cfg: Config, rng, spatial: list[str], split: str, index: int):
     hold is an error that names it.
     """
     rc, ac = cfg.room, cfg.array
-    fmt = cfg.scene.format
+    sized = receiver(cfg.scene.format).size_key == "side"
     wants = _wants(cfg, rng, spatial)
     for _ in range(ROOM_TRIES):
         dims = (float(rc.length.sample(rng)), float(rc.width.sample(rng)), float(rc.height.sample(rng)))
         room = Room(tuple(round(d, 4) for d in dims), round(float(rc.rt60.sample(rng)), 4))
-        side = round(float(ac.side.sample(rng)), 5) if fmt == "mic4" else None
+        side = round(float(ac.side.sample(rng)), 5) if sized else None
         yaw = round(float(ac.yaw.sample(rng)), 4)
         for _ in range(CENTRE_TRIES):
             centre = (
@@ -87,7 +89,7 @@ def place(cfg: Config, rng, spatial: list[str], split: str, index: int):
             centre = tuple(round(c, 5) for c in centre)
             places = _place_sources(cfg, rng, wants, room, centre, yaw)
             if places is not None:
-                return room, ArrayPose(fmt, centre, yaw, side), places
+                return room, array_pose(cfg, centre, yaw, side), places
     shown = "; ".join(f"source {k}: {w.describe(cfg.audio.duration)}" for k, w in enumerate(wants) if w is not None)
     if sum(w is not None for w in wants) > 1:
         apart = f", {cfg.scene.min_separation}° apart (scene.min_separation),"
@@ -240,12 +242,14 @@ def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want
 def place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, bank_path: str):
     """A bank room for the split, the bank's array, and each source's walk or point:
     (None, ArrayPose, [{"bank": BankWalk} or None per source], BankRef)."""
-    bank = open_bank_cached(bank_path, cfg.scene.format)
+    spec = receiver(cfg.scene.format)
+    bank = open_bank_cached(bank_path, spec.bank_format)
     rooms = split_rooms(bank, cfg.rooms_by_split(), split)
     room_name = rooms[int(rng.integers(len(rooms)))]
     info = bank.room_info(room_name)
-    side = (info.get("array") or {}).get("side") if bank.format == "mic4" else None
-    array = ArrayPose(bank.format, (0.0, 0.0, 0.0), 0.0, side)
+    side = (info.get("array") or {}).get("side") if spec.size_key == "side" else None
+    # the bank's RIRs hold the real capsules (baffle and all); a mixed receiver mixes them (render)
+    array = ArrayPose(spec.name, (0.0, 0.0, 0.0), 0.0, side)
     fc = _frame_centres(cfg)
     placed: list[np.ndarray] = []
     out = []

@@ -24,6 +24,7 @@ from .config import Config, rooms_without_bank
 from .errors import TselError
 from .recipe import BankRef, QueryPlan, Roots, SceneRecipe, Source
 from .placement import MAX_TRIES, place, place_bank
+from .receivers import receiver
 from .store.layout import Layout
 
 
@@ -99,7 +100,9 @@ def plan_roots(cfg: Config, home: Layout) -> Roots:
 
 def bank_request(cfg: Config) -> BankRequest:
     """What the config asks of its RIR bank (plain values for :mod:`tsel_data.banks.scenes`)."""
-    return BankRequest(cfg.room.bank, cfg.scene.format, cfg.audio.fs, cfg.rooms_by_split(), cfg.active_splits())
+    # a mixed receiver (stereo from FOA) renders from banks of its base format
+    return BankRequest(cfg.room.bank, receiver(cfg.scene.format).bank_format, cfg.audio.fs, cfg.rooms_by_split(),
+                       cfg.active_splits())
 
 
 def scene_rng(seed: int, split: str, index: int, stream: int = 0) -> np.random.Generator:

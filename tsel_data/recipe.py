@@ -20,7 +20,8 @@ import numpy as np
 
 from .choices import Role, Scenario, Spatial, values
 from .errors import DatasetError, GeometryError
-from .geometry import FORMATS, ArrayPose, Room, interpolate_positions, room_to_array
+from .geometry import Room, interpolate_positions, room_to_array
+from .receivers import RECEIVERS, ArrayPose
 
 SCENARIOS = values(Scenario)
 
@@ -237,11 +238,10 @@ class SceneRecipe:
     def to_dict(self) -> dict:
         # hand-written rather than dataclasses.asdict: planning 100k scenes is dominated
         # by serialisation otherwise. The bank reference is stored as "extra" (format 1).
-        a = self.array
         d = {
             "scene_id": self.scene_id, "split": self.split, "index": self.index, "seed": self.seed,
             "scenario": self.scenario, "query": self.query,
-            "array": {"format": a.format, "centre": list(a.centre), "yaw": a.yaw, "side": a.side},
+            "array": self.array.to_dict(),
             "sources": [s.to_dict() for s in self.sources],
             "room": None if self.room is None else {"dims": list(self.room.dims), "rt60": self.room.rt60},
             "fs": self.fs, "duration": self.duration, "label_hop": self.label_hop, "rir_method": self.rir_method,
@@ -259,7 +259,7 @@ class SceneRecipe:
     def from_dict(cls, d: dict) -> "SceneRecipe":
         d = dict(d)
         extra = d.pop("extra", None) or {}
-        d["array"] = ArrayPose(**{**d["array"], "centre": tuple(d["array"]["centre"])})
+        d["array"] = ArrayPose.from_dict(d["array"])
         d["room"] = None if d.get("room") is None else Room(tuple(d["room"]["dims"]), d["room"]["rt60"])
         d["sources"] = tuple(Source.from_dict(s) for s in d["sources"])
         d["bank"] = BankRef(extra["bank"], extra["bank_room"]) if extra.get("bank") else None
@@ -276,7 +276,7 @@ class SceneRecipe:
         """Raise GeometryError unless the scene can be realised; returns self."""
         if self.scenario not in SCENARIOS:
             raise GeometryError(f"{self.scene_id}: unknown scenario {self.scenario!r}; expected one of {SCENARIOS}")
-        if self.array.format not in FORMATS:
+        if self.array.format not in RECEIVERS:
             raise GeometryError(f"{self.scene_id}: unknown array format {self.array.format!r}")
         if not self.sources or self.sources[0].role != Role.TARGET or self.sources[0].spatial != Spatial.DIRECTIONAL:
             raise GeometryError(f"{self.scene_id}: source 0 must be the directional target")

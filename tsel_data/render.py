@@ -19,12 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .acoustics import simulate_rirs
-from .acoustics.late import diffuse_filters
+from .acoustics.capsules import capsule_model
 from .audio import active_rms, db, frame_activity, load_clip_cached
 from .banks.scenes import open_bank_cached
 from .choices import Spatial
 from .errors import AudioError, BankError
-from .geometry import CHANNEL_NAMES, cart_to_sph, frame_centres
+from .geometry import cart_to_sph, frame_centres
 from .queries import Truth, decide
 from .recipe import BankRef, Roots, SceneRecipe, array_frame_position_at
 from .store.records import (LABEL_DECIMALS, ArrayRecord, LevelsRecord, RoomRecord, SceneRecord, SourceRecord,
@@ -78,10 +78,10 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
     and bank sources go through the time-varying renderer (timevarying.py); additive
     sources are the dry clip on every omni channel (FOA: on W only, since equal gains on
     Y, Z, X would be a direction); diffuse ones are the clip as a diffuse field
-    (acoustics/late.py, diffuse_filters), drawn from the scene's seed.
+    (the receiver's capsule model, acoustics/capsules.py), drawn from the scene's seed.
     """
-    fs, n, fmt = recipe.fs, recipe.n_samples, recipe.array.format
-    images = np.zeros((len(recipe.sources), len(CHANNEL_NAMES[fmt]), n), dtype=np.float32)
+    fs, n, array = recipe.fs, recipe.n_samples, recipe.array
+    images = np.zeros((len(recipe.sources), array.n_channels, n), dtype=np.float32)
     rt60 = None
     static = [k for k, s in enumerate(recipe.sources)
               if s.spatial == Spatial.DIRECTIONAL and s.bank is None and not s.path]
@@ -92,13 +92,9 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
         images[static] = convolve(dry[static], rs.rirs, n)
     for k, s in enumerate(recipe.sources):
         if s.spatial == Spatial.ADDITIVE:
-            if fmt == "foa":
-                images[k, 0] = dry[k]
-            else:
-                images[k] = dry[k]
+            _additive(images[k], dry[k], array.spec.additive_gains(array.n_channels))
         elif s.spatial == Spatial.DIFFUSE:
-            g = diffuse_filters(fs, np.random.default_rng([recipe.seed, k]),
-                                positions=None if fmt == "foa" else recipe.array.mics(), foa=fmt == "foa")
+            g = capsule_model(array, fs).diffuse_filters(np.random.default_rng([recipe.seed, k]), array)
             images[k] = render_static(dry[k], g)[:, :n]
         elif s.path:
             images[k], measured = path_image(recipe.room, recipe.array, s.path, dry[k], fs, recipe.rir_method,
@@ -112,6 +108,16 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
             else:
                 images[k] = render_moving(dry[k], rirs, np.asarray(b.times), fs)[:, :n]
     return images, rt60
+
+
+def _additive(image: np.ndarray, dry: np.ndarray, gains: np.ndarray) -> None:
+    """An unspatialised source on the receiver's omni channels (``spec.additive``: every
+    capsule, W alone for FOA); channels of gain 0 stay exactly zero."""
+    for ch, g in enumerate(gains):
+        if g == 1.0:
+            image[ch] = dry
+        elif g != 0.0:
+            image[ch] = dry * np.float32(g)
 
 
 def path_image(room, array, path, dry: np.ndarray, fs: int, method: str, seed: int) -> tuple[np.ndarray, float | None]:
@@ -158,14 +164,13 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
     """Load the clips, render each source's image and set the levels (see the module
     docstring): every step of :func:`render_scene` but the labels and the record."""
     fs, hop, nf = recipe.fs, recipe.label_hop, recipe.n_frames
-    fmt = recipe.array.format
     dry = np.stack([_started(load_clip_cached(s.audio, fs, recipe.duration, s.offset), s.start, fs)
                     for s in recipe.sources])
     active = np.stack([frame_activity(x, fs, hop, nf, recipe.activity_threshold_db) for x in dry])
 
     images, rt60_measured = spatial_images(recipe, dry)
 
-    level_ch = slice(0, 1) if fmt == "foa" else slice(None)
+    level_ch = recipe.array.spec.level_slice()  # the "omni energy": W for FOA, every capsule of an array
     levels = np.array([active_rms(images[k, level_ch], active[k], fs, hop) for k in range(len(images))])
     target_rms = 10 ** (recipe.target_level_dbfs / 20)
     gains = np.zeros(len(images))
@@ -212,7 +217,6 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> RenderedSce
     AudioError
         A source is silent in the part of its clip the scene uses.
     """
-    fmt = recipe.array.format
     files = (roots or Roots()).resolve(recipe)
     parts = mix_parts(files)
     active, gains, norm, levels, peak, mix = parts.active, parts.gains, parts.norm, parts.levels, parts.peak, parts.mix
@@ -242,7 +246,7 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> RenderedSce
         scene_id=recipe.scene_id, split=recipe.split, index=recipe.index, seed=recipe.seed,
         scenario=recipe.scenario, query=query, motion="moving" if recipe.moving else "static",
         rir_method=recipe.rir_method, room=room,
-        array=ArrayRecord(fmt, centre, yaw, recipe.array.side, np.round(mics.astype(np.float64), 6).tolist()),
+        array=ArrayRecord.of(recipe.array, centre, yaw, np.round(mics.astype(np.float64), 6).tolist()),
         sources=tuple(
             SourceRecord(
                 role=s.role, clip_id=s.clip_id, audio=s.audio, captions=list(s.captions), spatial=s.spatial,
@@ -284,7 +288,7 @@ def _blame_rirs(recipe: SceneRecipe, k: int) -> None:
 
 
 def _bank(recipe: SceneRecipe):
-    return open_bank_cached(recipe.bank.path, recipe.array.format)
+    return open_bank_cached(recipe.bank.path, recipe.array.spec.bank_format)
 
 
 def _room_and_pose(recipe: SceneRecipe, rt60_measured, named: BankRef | None) -> tuple[RoomRecord, list | None, float | None]:

@@ -15,6 +15,7 @@ from tqdm import tqdm
 
 from .atomic import write_json
 from .config import Config, parse_config
+from .config.receiver import array_pose
 from .errors import AudioError, BankError, DatasetError
 from .executors import Runner
 from .h5str import as_strs
@@ -219,7 +220,7 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
 
 
 def _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler, roots) -> dict:
-    attrs = shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio)
+    attrs = dataset_attrs(cfg)
     done: dict[str, int] = {s: 0 for s in plans}
     failed: list[str] = []
     with Runner(executor, workers if len(todo) > 1 else 1, scheduler) as runner:
@@ -299,6 +300,12 @@ def finalize(out_dir: str, corpus_dir: str | None = None, bank: str | None = Non
             raise DatasetError(f"{len(missing)} shard(s) not rendered yet, e.g. {missing[0]}; "
                                f"run `tsel render {out_dir}` (or `tsel generate ... --resume`) first")
         doc = dataset_doc(portable_roots(cfg.to_dict(), out_dir), cfg.seed,
-                          shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio), entries)
+                          dataset_attrs(cfg), entries)
         write_json(layout.dataset_file, doc)
         return doc
+
+
+def dataset_attrs(cfg: Config) -> dict:
+    """The shard attributes of ``cfg``'s datasets (store.dataset.shard_attrs)."""
+    return shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio,
+                       array_pose(cfg).channel_names())

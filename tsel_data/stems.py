@@ -80,6 +80,6 @@ def write_stems(root: str, scene, base: str, corpus_dir: str | None = None,
     for k, src in enumerate(recipe.sources):
         name = "target" if k == 0 else f"interferer{k}"
         path = f"{stem}.{name}.stereo.wav"
-        save_wav(path, stereo_preview(stems[k], recipe.array.format).T, recipe.fs)
+        save_wav(path, stereo_preview(stems[k], recipe.array.format, recipe.array.mics()).T, recipe.fs)
         paths.append(path)
     return paths, same

@@ -39,6 +39,7 @@ import numpy as np
 from .features import mic_pairs, stft
 from .geometry import SOUND_SPEED, azimuth_difference, circular_mean, sph_to_cart, wrap_azimuth
 from .progress import bar
+from .receivers import receiver
 from .store.reader import list_splits, open_dataset
 
 _EPS = 1e-12
@@ -75,7 +76,7 @@ def _maps(spec, owner, freqs, fs, n_frames, fmt, mic_positions, n_fft, fmin, fma
     power = np.mean(np.abs(spec) ** 2, axis=0)  # [J, K]
     mask = power >= power.max(axis=1, keepdims=True) * 10 ** (-dynamic_db / 10)
     mask &= power > 0
-    if fmt == "foa":
+    if receiver(fmt).localizer == "intensity":
         return _intensity_maps(spec, mask, owner, n_frames)
     return _srp_maps(spec, mask, owner, n_frames, band, n_fft, np.asarray(mic_positions, dtype=np.float64), fs)
 

@@ -60,8 +60,9 @@ def pyroom_scale(fs: int) -> float:
 
 
 def pyroom_rirs(room, array, points: np.ndarray, fs: int, seed: int = 0, max_order: int | None = None) -> RirSet:
-    if array.format == "foa":
-        raise ValueError("the pyroomacoustics method renders omni capsules only; use rir_method 'ism' or 'hybrid' for FOA")
+    if not array.free_field_omnis:
+        raise ValueError(f"the pyroomacoustics method renders free-field omni capsules only, not {array.format}; "
+                         f"use rir_method 'ism' or 'hybrid'")
     pra.constants.set("c", SOUND_SPEED)  # pyroomacoustics' own default, stated
     limit = sabine_min_rt60(room.dims)
     if room.rt60 < limit:

@@ -16,10 +16,11 @@ Methods (docs/acoustics.md):
   envelope continues the expected image-source energy at the transition and decays with
   exactly ``room.rt60``. A 10 ms power-complementary cross-fade joins them.
 
-Formats: ``mic4`` and ``tetra`` are omnidirectional capsules at the array's channel
-positions (``tetra`` as an open sphere: its rigid-sphere scattering is not modelled);
-``foa`` encodes every image source with the ACN/SN3D gains of its direction in the array
-frame, and its tail has uncorrelated W, Y, Z, X with energies 1 : 1/3 : 1/3 : 1/3.
+Receivers: each image source reaches the channels as the receiver's capsule model says
+(capsules.py: spaced capsules, omni or first order; FOA with the ACN/SN3D gains of its
+direction in the array frame; capsules on a rigid sphere; ears through an HRTF; channels
+mixed from another receiver), and the tail has the receiver's diffuse-field statistics
+(omni coherence sinc(kd); FOA uncorrelated W, Y, Z, X with energies 1 : 1/3 : 1/3 : 1/3).
 Pure numpy: no pyroomacoustics code, threads or global random state.
 """
 from __future__ import annotations
@@ -31,10 +32,10 @@ from scipy.signal import butter, sosfilt
 
 from ..choices import RirMethod
 from ..errors import GeometryError
-from ..geometry import SOUND_SPEED, array_to_room, foa_gains_of
+from ..geometry import SOUND_SPEED
 from .base import RirSet
-from .ism import FD_TAPS, add_impulses, decay_model, fd_energy_gain, grid_to_signal, image_chunks, model_edc, new_grid
-from .late import diffuse_noise
+from .capsules import capsule_model
+from .ism import FD_TAPS, decay_model, fd_energy_gain, image_chunks, model_edc
 from .metrics import decay_time, t30
 
 METHODS = (RirMethod.HYBRID, RirMethod.ISM)
@@ -82,8 +83,8 @@ def shoebox_rirs(
     if not (np.all(dims > 0) and rt60 > 0):
         raise GeometryError(f"room {dims.tolist()} with RT60 {rt60} s: dimensions and RT60 must be positive")
     centre = np.asarray(array.centre, dtype=np.float64)
-    foa = array.format == "foa"
-    mics = array_to_room(array.mics(), centre, array.yaw)  # [C, 3], room frame
+    model = capsule_model(array, fs)  # how the receiver's channels hear each image (capsules.py)
+    mics = model.points  # [C, 3] capsules (the centre of a coincident receiver), room frame
     _check_points(points, mics, dims)
     c = SOUND_SPEED
 
@@ -103,7 +104,7 @@ def shoebox_rirs(
     else:
         t_img = n_len / fs
         if method == "ism" and max_order is None:
-            a = fit_ism_absorption(dims, rt60, points[0], mics[0] if not foa else centre, fs, n_len, a)
+            a = fit_ism_absorption(dims, rt60, points[0], model.reference, fs, n_len, a)
     radius = c * t_img + aperture
     fade = (t_mix, FADE) if with_tail else None
 
@@ -111,22 +112,16 @@ def shoebox_rirs(
     # and 50 ms for the DC blocker's response (time constant ~8 ms) to die out
     n_img = min(n_len, int(np.ceil((t_img + 0.05) * fs)) + FD_TAPS)
     apart = tail_apart and one_source and with_tail
-    rirs = np.zeros((len(points), len(mics), n_img if apart else n_len), dtype=np.float32)
+    rirs = np.zeros((len(points), model.n_channels, n_img if apart else n_len), dtype=np.float32)
     for s, p in enumerate(points):
-        grid = new_grid(len(mics), n_img)
+        grid = model.new_grid(n_img)
         for pos, order in image_chunks(dims, p, centre, radius, max_order):
-            amp = np.exp(-a * order)
-            if foa:
-                _add_foa(grid, pos, amp, centre, array.yaw, fs, fade)
-            else:
-                for ch, m in enumerate(mics):
-                    r = np.linalg.norm(pos - m, axis=1)
-                    _add(grid, ch, r / c, amp / (4 * np.pi * r), fs, fade)
-        rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), grid_to_signal(grid), axis=-1)
+            model.add(grid, pos, np.exp(-a * order), fade)
+        rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), model.render(grid), axis=-1)
 
     tail, first = None, rirs[0, 0]
     if with_tail:
-        late = _late_tail(np.random.default_rng(seed), dims, a, rt60, mics, foa, fs, n_len, t_mix,
+        late = _late_tail(np.random.default_rng(seed), dims, a, rt60, model, fs, n_len, t_mix,
                           1 if one_source else len(points))
         if apart:
             tail = late[0]
@@ -204,37 +199,7 @@ def _dc_blocker(fs: int) -> np.ndarray:
     return butter(2, HIGHPASS, "highpass", fs=fs, output="sos")
 
 
-def _fade_out(t: np.ndarray, fade) -> np.ndarray | float:
-    """Power-complementary cross-fade: images get cos, the tail sin, of π/2 · ρ(t)."""
-    if fade is None:
-        return 1.0
-    t_mix, width = fade
-    rho = np.clip((t - (t_mix - width / 2)) / width, 0.0, 1.0)
-    return np.cos(0.5 * np.pi * rho)
-
-
-def _add(grid, ch, t, amp, fs, fade) -> None:
-    add_impulses(grid, ch, t * fs, amp * _fade_out(t, fade))
-
-
-def _add_foa(grid, pos, amp, centre, yaw, fs, fade) -> None:
-    """Encode images at ``pos`` [N, 3] (room frame) into W, Y, Z, X (ACN/SN3D) of an
-    array at ``centre`` turned by ``yaw`` degrees: gains 1, u_y, u_z, u_x of the unit
-    direction u in the array frame (geometry.foa_gains_of, the convention of docs/format.md)."""
-    v = pos - centre
-    r = np.linalg.norm(v, axis=1)
-    c, s = np.cos(np.radians(yaw)), np.sin(np.radians(yaw))
-    ux = (c * v[:, 0] + s * v[:, 1]) / r  # Rz(-yaw) v
-    uy = (-s * v[:, 0] + c * v[:, 1]) / r
-    uz = v[:, 2] / r
-    gains = foa_gains_of(np.stack([ux, uy, uz], axis=-1))  # [N, 4]
-    t = r / SOUND_SPEED
-    w = amp / (4 * np.pi * r) * _fade_out(t, fade)
-    for ch in range(4):
-        add_impulses(grid, ch, t * fs, w if ch == 0 else w * gains[:, ch])
-
-
-def _late_tail(rng, dims, a, rt60, mics, foa, fs, n_len, t_mix, n_points) -> np.ndarray:
+def _late_tail(rng, dims, a, rt60, model, fs, n_len, t_mix, n_points) -> np.ndarray:
     """Diffuse tails [S, C, n_len] (float32): zero before the cross-fade, then noise with
     variance η E(t_mix) / fs at t_mix decaying by 60 dB per rt60, faded in by sin.
 
@@ -249,8 +214,8 @@ def _late_tail(rng, dims, a, rt60, mics, foa, fs, n_len, t_mix, n_points) -> np.
     e_mix = c / (16 * np.pi**2 * np.prod(dims)) * float(decay_model(dims, 2 * a * c * t_mix))
     rho = np.clip((t - (t_mix - FADE / 2)) / FADE, 0.0, 1.0)
     env = np.sqrt(fd_energy_gain() * e_mix / fs) * 10.0 ** (-3.0 * (t - t_mix) / rt60) * np.sin(0.5 * np.pi * rho)
-    noise = diffuse_noise(rng, n_points, n, fs, positions=None if foa else mics, foa=foa)
-    out = np.zeros((n_points, len(mics), n_len), dtype=np.float32)
+    noise = model.diffuse_noise(rng, n_points, n)  # the receiver's diffuse-field statistics (capsules.py)
+    out = np.zeros((n_points, model.n_channels, n_len), dtype=np.float32)
     out[..., start:] = noise * env
     return out
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import BankError
-from ..geometry import CHANNEL_NAMES, FORMATS
+from ..receivers import NAMES, canonical, receiver
 
 KINDS = ("circular", "linear")
 
@@ -205,10 +205,10 @@ def _range(v) -> list:
 
 
 def check_format(fmt: str, where: str = "") -> str:
-    """Canonical array format: TAU's ``mic`` is our ``tetra``."""
-    f = {"mic": "tetra"}.get(str(fmt).lower(), str(fmt).lower())
-    if f not in FORMATS:
-        raise BankError(f"{where}unknown array format {fmt!r}; expected one of {FORMATS} (or 'mic' for tetra)")
+    """A receiver's own name for ``fmt`` (TAU's ``mic`` is our ``tetra``: receivers' aliases)."""
+    f = canonical(fmt)
+    if f is None:
+        raise BankError(f"{where}unknown array format {fmt!r}; expected one of {', '.join(NAMES)} (or 'mic' for tetra)")
     return f
 
 
@@ -228,7 +228,7 @@ class MemoryBank(Bank):
     def __init__(self, fs: int, format: str, rooms: dict, info: dict | None = None, source: str = "<memory>"):
         self.fs = int(fs)
         self.format = check_format(format)
-        self.channel_names = CHANNEL_NAMES[self.format]
+        self.channel_names = receiver(self.format).channels(n=_channels(rooms))
         self.source = source
         self._rooms = {}
         for name, items in rooms.items():
@@ -250,3 +250,11 @@ class MemoryBank(Bank):
 
     def _read(self, room, traj, rows):
         return self._rooms[room].rirs[traj.id][rows]
+
+
+def _channels(rooms: dict) -> int | None:
+    """The channel count of a memory bank's RIRs (a custom array's names follow it)."""
+    for items in rooms.values():
+        for _, r in items:
+            return int(np.asarray(r).shape[1])
+    return None

@@ -19,7 +19,8 @@ import numpy as np
 
 from ..acoustics import simulate_rirs
 from ..errors import BankError, GeometryError
-from ..geometry import ArrayPose, Room, array_to_room, sph_to_cart
+from ..geometry import Room, array_to_room, sph_to_cart
+from ..receivers import ArrayPose, receiver
 from .base import MemoryBank, Trajectory, check_format
 from .native import write_bank
 
@@ -45,16 +46,22 @@ def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int
     """
     fmt = check_format(format)
     method = method or "hybrid"  # the toolkit's own simulator (acoustics/shoebox.py)
-    if fmt == "foa" and method == "pyroomacoustics":
-        raise BankError("the pyroomacoustics method renders omni capsules only; build FOA banks with method 'hybrid' or 'ism'")
+    spec = receiver(fmt)
+    sized = spec.size_key == "side"
+    if method == "pyroomacoustics" and not ArrayPose(fmt, (0.0, 0.0, 0.0), 0.0, side if sized else None).free_field_omnis:
+        raise BankError(f"the pyroomacoustics method renders free-field omni capsules only; build {fmt} banks with "
+                        f"method 'hybrid' or 'ism'")
+    if not spec.bankable:
+        raise BankError(f"bank build: {fmt} banks are not built (a bank holds one fixed array); simulate {fmt} scenes "
+                        f"directly, without room.bank")
     distances = tuple(float(d) for d in distances)
     heights = tuple(float(h) for h in heights)
     numbers = {"distances": distances, "heights": heights, "RT60": tuple(rt60), "step": (step_deg,), "side": (side,)}
     for name, vals in numbers.items():
         if not all(np.isfinite(float(v)) for v in vals if v is not None):
             raise BankError(f"bank build: {name} {vals} must be finite numbers")
-    if fmt == "mic4" and not (side or 0) > 0:
-        raise BankError(f"bank build: the mic4 square's side {side} m must be positive")
+    if sized and not (side or 0) > 0:
+        raise BankError(f"bank build: the {fmt} array's side {side} m must be positive")
     if rir_seconds is not None and not (np.isfinite(rir_seconds) and round(rir_seconds * fs) >= 1):
         raise BankError(f"bank build: RIR length {rir_seconds} s must be at least one sample at {fs} Hz")
     if not distances or min(distances) <= 0 or n_rooms < 1:
@@ -80,7 +87,7 @@ def simulate_bank(format: str = "mic4", n_rooms: int = 2, seed: int = 0, fs: int
         centre = np.r_[dims[:2] / 2 + rng.uniform(-1, 1, 2) * np.minimum(slack, 0.5), rng.uniform(z_lo, min(z_hi, max(z_lo, 1.5)))]
         yaw = float(rng.uniform(-180.0, 180.0))
         room = Room(tuple(np.round(dims, 3).tolist()), float(np.round(rng.uniform(*rt60), 3)))
-        array = ArrayPose(fmt, tuple(np.round(centre, 3).tolist()), round(yaw, 2), side if fmt == "mic4" else None)
+        array = ArrayPose(fmt, tuple(np.round(centre, 3).tolist()), round(yaw, 2), side if sized else None)
         rings, pts = [], []
         for di, r in enumerate(distances):
             for hi, dz in enumerate(heights):

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import BankError, ConfigError, TselError
+from ..receivers import receiver
 from .build import DEMO, build_bank
 from .kinds import open_bank
 
@@ -181,12 +182,12 @@ def _room_positions_problem(bank, room: str) -> TselError | None:
     if not trajs or sum(len(t) for t in trajs) == 0:
         return BankError(f"{bank.source}: room {room} has no RIR positions (no trajectories); re-import the room or "
                          f"remove it from the split's rooms")
-    if bank.format == "mic4":
+    if receiver(bank.format).size_key == "side":
         side = (bank.room_info(room).get("array") or {}).get("side")
         if not isinstance(side, (int, float)) or not side > 0:
-            # a square array's mic positions (labels' mic_positions) need its side length
-            return BankError(f"{bank.source}: room {room} is a mic4 room without the array's side length (room info "
-                             f"array.side); rebuild it with `tsel bank build` or add the side to its info")
+            # a sized array's mic positions (labels' mic_positions) need its side length
+            return BankError(f"{bank.source}: room {room} is a {bank.format} room without the array's side length "
+                             f"(room info array.side); rebuild it with `tsel bank build` or add the side to its info")
     for t in trajs:
         p = np.asarray(t.positions, dtype=np.float64)
         if p.ndim != 2 or p.shape[1] != 3 or len(p) == 0:

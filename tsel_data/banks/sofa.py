@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry import CHANNEL_NAMES, cart_to_sph, sph_to_cart
+from ..geometry import cart_to_sph, sph_to_cart
+from ..receivers import canonical, receiver
 from ..errors import BankError
 from ..h5str import as_str
 from .base import Bank, Trajectory, check_format
@@ -77,7 +78,7 @@ class SofaBank(Bank):
             if not infos:
                 raise BankError(f"{self.source}: no {want} SOFA files")
         self.format = want
-        self.channel_names = CHANNEL_NAMES[want]
+        self.channel_names = receiver(want).channels(n=infos[0]["channels"])
         fs = {i["fs"] for i in infos}
         if len(fs) > 1:
             raise BankError(f"{self.source}: SOFA files have different sample rates {sorted(fs)}; resample them to one")
@@ -126,7 +127,7 @@ class SofaBank(Bank):
         room = as_str(f.attrs.get("RoomShortName")) or _SUFFIX.sub("", path.stem)
         listener = as_str(f.attrs.get("ListenerShortName")).lower()
         m = _SUFFIX.search(path.stem)
-        fmt = listener if listener in ("foa", "mic", "tetra", "mic4") else (m.group(1).lower() if m else None)
+        fmt = listener if canonical(listener) else (m.group(1).lower() if m else None)
         return {
             "path": path,
             "room": room,

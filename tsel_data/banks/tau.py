@@ -46,7 +46,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry import CHANNEL_NAMES, cart_to_sph
+from ..geometry import cart_to_sph
+from ..receivers import receiver
 from ..errors import BankError
 from .base import Bank, Trajectory, check_format
 from ._h5 import H5Pool, read_rows
@@ -57,6 +58,10 @@ TAU_ROOM_NUMBERS = {
     "sc203": 6, "se203": 8, "tb103": 9, "tc352": 10,
 }
 _RIR_FILE = re.compile(r"^rirs_(\d+)_(.+)\.mat$")
+
+
+# the DB's own field name for each receiver it was measured with
+TAU_FIELDS = {"foa": "foa", "tetra": "mic"}
 
 
 class TauBank(Bank):
@@ -74,10 +79,10 @@ class TauBank(Bank):
         self.root = Path(root)
         self.source = str(self.root)
         self.format = check_format(format, f"{root}: ")
-        if self.format not in ("foa", "tetra"):
+        if self.format not in TAU_FIELDS:
             raise BankError(f"{root}: the TAU-SRIR DB holds foa and mic (tetra) RIRs, not {self.format}")
-        self._field = "foa" if self.format == "foa" else "mic"
-        self.channel_names = CHANNEL_NAMES[self.format]
+        self._field = TAU_FIELDS[self.format]
+        self.channel_names = receiver(self.format).channel_names
         for name in ("rirdata.mat", "measinfo.mat"):
             if not (self.root / name).exists():
                 raise BankError(f"{self.root}: {name} not found; it ships with the TAU-SRIR DB (point at the TAU-SRIR_DB directory)")

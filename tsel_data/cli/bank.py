@@ -6,7 +6,8 @@ import json
 import click
 
 from ..banks import BankError, open_bank
-from ..choices import ArrayFormat, RirMethod, values
+from ..choices import RirMethod, values
+from ..receivers import ALIASES, NAMES, RECEIVERS
 
 
 def _floats(text: str, what: str) -> tuple:
@@ -20,6 +21,8 @@ def _rooms(values) -> list | None:
     out = [r for v in values for r in v.replace(",", " ").split()]
     return out or None
 
+
+BANK_RECEIVERS = [name for name, spec in RECEIVERS.items() if spec.bankable]
 
 @click.group("bank")
 def bank():
@@ -61,7 +64,7 @@ def _write_with_bar(out, b, rooms, provenance, force=False):
 @import_group.command("sofa")
 @click.argument("files", nargs=-1, required=True, type=click.Path())
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="Bank file to write (.h5).")
-@click.option("--format", "fmt", type=click.Choice(["foa", "mic", "tetra", "mic4"]), default=None, help="Array format, if the files do not say (SpatialScaper's _foa/_mic suffix does).")
+@click.option("--format", "fmt", type=click.Choice([*NAMES, *ALIASES]), default=None, help="Array format, if the files do not say (SpatialScaper's _foa/_mic suffix does).")
 @click.option("--rooms", multiple=True, help="Rooms to keep (default all).")
 @click.option("--grouping", type=click.Choice(["auto", "rings", "runs"]), default="auto", show_default=True, help="How positions are grouped into trajectories (docs/banks.md).")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
@@ -101,7 +104,8 @@ def info(path, fmt, show_traj, as_json):
 
 @bank.command("build")
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="Bank file to write (.h5).")
-@click.option("--format", "fmt", type=click.Choice(values(ArrayFormat)), default="mic4", show_default=True)
+@click.option("--format", "fmt", type=click.Choice(BANK_RECEIVERS), default="mic4", show_default=True,
+              help="The receiver the bank's RIRs are simulated for.")
 @click.option("--rooms", "n_rooms", type=int, default=2, show_default=True, help="Number of simulated rooms.")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--fs", type=int, default=24000, show_default=True)

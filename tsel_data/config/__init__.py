@@ -2,7 +2,8 @@
 files and overrides (load.py), writing TOML (toml.py) and the key tables of
 docs/config.md (doc.py).
 
-Import order: ``schema`` -> ``rules`` -> ``load`` -> ``compare`` (which keys two configs
+Import order: ``schema`` -> ``receiver`` (the config's receiver as an ArrayPose) ->
+``rules`` -> ``load`` -> ``compare`` (which keys two configs
 set differently); ``toml`` and ``doc`` use the schema.
 """
 from .compare import Difference, config_differences

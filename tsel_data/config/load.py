@@ -236,7 +236,7 @@ def _parse_value(v, f, defaults, where: str, key: str):
             raise ConfigError(f"{at(where, key)}: {key} must be a string or a list of non-empty strings, got {v!r}")
         return tuple(v)
     if isinstance(default, tuple):
-        return tuple(v) if isinstance(v, list) else (v,)
+        return _frozen(v) if isinstance(v, list) else (v,)
     if isinstance(default, (bool, str)):
         if not isinstance(v, type(default)):
             raise ConfigError(f"{at(where, key)}: {key} must be a {type(default).__name__}, got {v!r}")
@@ -248,3 +248,8 @@ def _parse_value(v, f, defaults, where: str, key: str):
             raise ConfigError(f"{at(where, key)}: {key} must be {kind}, got {v!r}")
         return type(default)(v)
     return v
+
+
+def _frozen(v):
+    """Lists as tuples, all the way down (a config is frozen and hashable)."""
+    return tuple(_frozen(x) for x in v) if isinstance(v, list) else v

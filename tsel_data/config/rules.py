@@ -22,7 +22,7 @@ from ..acoustics.metrics import sabine_min_rt60
 from ..choices import Pairing, QueryType, Relation, SimilarityMeasure, values
 from ..distributions import Dist
 from ..errors import ConfigError, GeometryError
-from ..geometry import array_radius
+from .receiver import array_pose, receiver_problems
 from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
 
 MAX_NUMBER = 1e9  # larger config numbers are typos (seeds excepted)
@@ -220,9 +220,13 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
                                f"{cfg.scene.min_separation:g}° is impossible with {k} directional sources: the "
                                f"largest possible is {360 / k:g}° (360° / {k}); lower scene.min_separation"))
     out += _query_problems(cfg, where)
-    if not cfg.room.bank and cfg.scene.format == "foa" and cfg.room.rir_method == "pyroomacoustics":
-        out.append(ConfigError(f"{at(where, 'room.rir_method', 'scene.format')}: room.rir_method = \"pyroomacoustics\" renders omni capsules only; "
-                               f"use \"hybrid\" or \"ism\" for scene.format = \"foa\""))
+    receiver_errors = receiver_problems(cfg, at(where, "scene.format", "array"))
+    out += receiver_errors
+    if receiver_errors:
+        return out  # the rest needs a receiver that can be built
+    if not cfg.room.bank and cfg.room.rir_method == "pyroomacoustics" and not array_pose(cfg).free_field_omnis:
+        out.append(ConfigError(f"{at(where, 'room.rir_method', 'scene.format')}: room.rir_method = \"pyroomacoustics\" renders free-field omni "
+                               f"capsules only; use \"hybrid\" or \"ism\" for scene.format = \"{cfg.scene.format}\""))
     if not cfg.room.bank and cfg.room.rir_method == "pyroomacoustics":
         dims = [getattr(cfg.room, k).bounds for k in ("length", "width", "height")]
         rt = cfg.room.rt60.bounds
@@ -245,7 +249,7 @@ def _query_problems(cfg: Config, where: str) -> list[ConfigError]:
     if bad or not sc.relations:
         out.append(ConfigError(f"{where}: scene.relations = {list(sc.relations)!r}: "
                                f"{'unknown ' + repr(bad[0]) if bad else 'empty'}; choose among {', '.join(known)}"))
-    wants = set(sc.query.options)
+    wants = {o for o in sc.query.options if isinstance(o, str)}  # field_problems names any other value
     same_kind = sc.same_kind_distractors > 0 or QueryType.COMPOSITE in wants
     if not bad and same_kind and not {Relation.LOUDEST, Relation.QUIETEST} & set(sc.relations):
         out.append(ConfigError(f"{where}: scene.relations must include loudest or quietest when scenes hold same-kind "
@@ -333,8 +337,7 @@ def _smallest_room_problems(cfg: Config, bounds: dict, where: str) -> list[Geome
     lmin, wmin, hmin = bounds["length"][0], bounds["width"][0], bounds["height"][0]
     out = []
     floor = min(lmin, wmin)
-    side = arr.side.bounds[1] if cfg.scene.format == "mic4" and arr.side.bounds else 0.0
-    radius = array_radius(cfg.scene.format, side)
+    radius = array_pose(cfg, side=arr.side.bounds[1] if arr.side.bounds else 0.0).radius()
     need = 2 * (arr.wall_margin + radius)
     if floor < need:
         key = "room.length" if lmin <= wmin else "room.width"

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-from ..choices import (Additive, ArrayFormat, AudioCoding, BadClipPolicy, CheckLevel, CorpusFormat, Motion, Pairing,
-                       PathKind, QueryType, Relation, RirMethod, Scenario, SimilarityMeasure, values)
+from ..choices import (Additive, AudioCoding, BadClipPolicy, Baffle, CheckLevel, CorpusFormat, HrtfInterpolation, Motion,
+                       Pairing, PathKind, QueryType, Relation, RirMethod, Scenario, SimilarityMeasure, values)
 from ..distributions import Dist
 from ..jsonable import jsonable
+from ..receivers import NAMES as RECEIVER_NAMES
 
 
 def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, le=None, lt=None, why: str = "",
@@ -101,7 +102,8 @@ class AudioConfig:
 class SceneConfig:
     """What a scene holds: array format, sources, their separation, motion."""
 
-    format: str = option("mic4", "array format", choices=ArrayFormat)
+    format: str = option("mic4", "the receiver: an array, an ambisonic microphone, a stereo pair or two ears "
+                                 "(`tsel presets --receivers` lists them; docs/format.md)", choices=RECEIVER_NAMES)
     scenario: Dist = dist(["choose", ["two-directional"]],
                           "`two-directional`, or `directional+additive` (the first interferer added to every "
                           "channel unspatialised), or a `choose` of both", choices=Scenario)
@@ -200,12 +202,30 @@ class RoomConfig:
 
 @dataclass(frozen=True)
 class ArrayConfig:
-    """Where the array stands in a simulated room."""
+    """Where the receiver stands in a simulated room, and what a custom, sphere or binaural
+    receiver is made of."""
 
     side: Dist = dist(["uniform", 0.10, 0.13], "mic4 side length", unit="m", gt=0.0)
     height: Dist = dist(["uniform", 1.0, 1.2], "array centre height above the floor", unit="m", ge=0.0)
     yaw: Dist = dist(["uniform", -180.0, 180.0], "direction of the array's front in the room", unit="deg")
     wall_margin: float = option(1.0, "minimum distance from the array centre to the side walls", unit="m")
+    capsules: tuple = option((), "`scene.format = \"custom\"`: capsule positions `[[x, y, z], ...]` in the array "
+                                 "frame (x front, y left, z up), 1-64 capsules; labels stay in this frame",
+                             unit="m", new=True)
+    patterns: tuple = option((), "custom capsules' patterns: one for all or one per capsule, each `omni`, "
+                                 "`subcardioid`, `cardioid`, `supercardioid`, `hypercardioid` or `figure8`; empty: "
+                                 "all omni", new=True)
+    orientations: tuple = option((), "custom capsules' axes `[[azimuth, elevation], ...]` (one for all or one per "
+                                     "capsule); empty: each pointing away from the array centre (a capsule at the "
+                                     "centre points to the front)", unit="deg", new=True)
+    baffle: str = option("rigid", "capsules of a sphere array (`tetra`, `em32`) on a `rigid` sphere (the sphere "
+                                  "scatters the sound, as on the real microphone) or `open` (free-field omnis at the "
+                                  "capsule positions)", choices=Baffle, new=True)
+    hrtf: str = option("", "`scene.format = \"binaural\"`: a SOFA HRTF file (SimpleFreeFieldHRIR), e.g. the MIT "
+                           "KEMAR set; the head's yaw is `yaw`", path=True, new=True)
+    hrtf_interpolation: str = option("nearest", "binaural: each image source through the `nearest` measured HRIR, "
+                                                "or `interpolated` (the measured triangle around its direction, "
+                                                "barycentric weights)", choices=HrtfInterpolation, new=True)
 
 
 @dataclass(frozen=True)

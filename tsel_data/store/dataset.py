@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from ..version import __version__
 from ..errors import DatasetError
-from ..geometry import CHANNEL_NAMES
+from ..receivers import RECEIVERS, receiver
 from .layout import DATASET_FILE
 
 FORMAT_VERSION = 1
@@ -23,16 +23,29 @@ CONVENTIONS = {
     "elevation": "degrees above the horizontal plane, [-90, 90]",
     "distance": "metres from the array centre",
     "label_frames": "frame k covers [k*hop, (k+1)*hop); position at the frame centre",
-    "foa": "ACN (W, Y, Z, X), SN3D",
-    "mic4": "mic k at azimuth 45 + 90k degrees, radius side/sqrt(2): front-left, back-left, back-right, front-right",
+    "foa": RECEIVERS["foa"].convention,
+    "mic4": RECEIVERS["mic4"].convention,
     "sources": "source 0 is the target; NaN positions for absent or non-directional sources",
 }
 
 
-def shard_attrs(fs: int, label_hop: float, fmt: str, coding: str = "float32") -> dict:
+def conventions(fmt: str) -> dict:
+    """The conventions block of a dataset of receiver ``fmt``: the shared ones, and the
+    receiver's own (mic4 and foa datasets keep format 1's block)."""
+    if fmt in CONVENTIONS:
+        return CONVENTIONS
+    spec = receiver(fmt)
+    return {**{k: v for k, v in CONVENTIONS.items() if k != "sources"}, spec.name: spec.convention,
+            "sources": CONVENTIONS["sources"]}
+
+
+def shard_attrs(fs: int, label_hop: float, fmt: str, coding: str = "float32", channels=None) -> dict:
     """The attributes of every shard (HDF5 attrs, JSON header) and of ``dataset.json``;
-    ``audio_coding`` only when it is not float32 (format version 1's only coding)."""
-    attrs = {"fs": fs, "label_hop": label_hop, "format": fmt, "channel_names": list(CHANNEL_NAMES[fmt]),
+    ``audio_coding`` only when it is not float32 (format version 1's only coding).
+    channels: the receiver's channel names (default: its fixed ones; a custom array's
+    follow its capsules)."""
+    names = list(channels) if channels is not None else list(receiver(fmt).channels())
+    attrs = {"fs": fs, "label_hop": label_hop, "format": fmt, "channel_names": names,
              "format_version": FORMAT_VERSION}
     if coding != "float32":
         attrs["audio_coding"] = str(coding)
@@ -94,7 +107,7 @@ def dataset_doc(config: dict, seed: int, attrs: dict, splits: dict[str, list[Sha
     """The document ``finalize`` writes: tool, version, format version, conventions, the
     resolved config, seed, shard attributes, and per split its scene count and shards."""
     return {"tool": "tsel-data", "version": __version__, "format_version": FORMAT_VERSION,
-            "conventions": CONVENTIONS, "config": config, "seed": seed, **attrs,
+            "conventions": conventions(attrs["format"]), "config": config, "seed": seed, **attrs,
             "splits": {s: {"scenes": sum(e.scenes for e in entries), "shards": [e.to_json() for e in entries]}
                        for s, entries in splits.items()}}
 

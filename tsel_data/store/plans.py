@@ -12,7 +12,7 @@ import os
 from dataclasses import dataclass
 
 from ..errors import DatasetError
-from ..geometry import CHANNEL_NAMES
+from ..receivers import canonical, receiver
 from ..recipe import SceneRecipe, read_plan
 from ..version import __version__
 from .dataset import DatasetDoc, ShardEntry
@@ -197,7 +197,15 @@ def unfinished_doc(layout: Layout) -> DatasetDoc:
             h5, js = t.files
             splits[t.split].append(ShardEntry(h5, js, t.stop - t.start, first=t.start))
     return DatasetDoc(path=layout.config_file, fs=fs, label_hop=hop, format=fmt,
-                      channel_names=list(CHANNEL_NAMES.get(fmt, ())), config=cfg, splits=splits,
+                      channel_names=_channel_names(cfg, fmt), config=cfg, splits=splits,
                       counts={s: sum(e.scenes for e in v) for s, v in splits.items()},
                       raw={"seed": cfg.get("seed", 0), "config": cfg}, finished=False, planned=counts,
                       shards_planned=len(tasks))
+
+
+def _channel_names(cfg: dict, fmt: str) -> list:
+    """The receiver's channel names from a plan's config (a custom array's follow its capsules)."""
+    if canonical(fmt) is None:
+        return []
+    caps = (cfg.get("array") or {}).get("capsules") or ()
+    return list(receiver(fmt).channels(n=len(caps)))

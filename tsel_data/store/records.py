@@ -83,24 +83,49 @@ class RoomRecord(_JsonMapping):
 
 @dataclass(frozen=True)
 class ArrayRecord(_JsonMapping):
-    """The array: ``format``; ``centre`` [x, y, z] room frame m and ``yaw`` degrees (None
-    when a measured bank does not know them); ``side`` m (mic4); ``mic_positions``
-    [[x, y, z]] array frame m."""
+    """The receiver: ``format`` (its name); ``centre`` [x, y, z] room frame m and ``yaw``
+    degrees (None when a measured bank does not know them); ``side`` m (mic4);
+    ``mic_positions`` [[x, y, z]] array frame m. Only for receivers that have them (absent
+    otherwise): ``patterns`` and ``orientations`` [[azimuth, elevation]] degrees of a custom
+    array's capsules, ``baffle`` of a sphere array, ``hrtf`` (the SOFA file, as the plan
+    names it) and ``interpolation`` of a binaural receiver."""
 
     format: str
     centre: list | None = None
     yaw: float | None = None
     side: float | None = None
     mic_positions: list | None = None
+    patterns: list | None = None
+    orientations: list | None = None
+    baffle: str | None = None
+    hrtf: str | None = None
+    interpolation: str | None = None
+
+    @classmethod
+    def of(cls, pose, centre, yaw, mic_positions) -> "ArrayRecord":
+        """The record of a scene's :class:`~tsel_data.receivers.ArrayPose` (``centre`` and
+        ``yaw`` as the scene knows them)."""
+        return cls(pose.format, centre, yaw, pose.side, mic_positions,
+                   None if pose.patterns is None else list(pose.patterns),
+                   None if pose.orientations is None else [list(o) for o in pose.orientations],
+                   pose.baffle, pose.hrtf, pose.interpolation)
 
     def to_json(self) -> dict:
-        return {"format": self.format, "centre": self.centre, "yaw": self.yaw, "side": self.side,
-                "mic_positions": self.mic_positions}
+        d = {"format": self.format, "centre": self.centre, "yaw": self.yaw, "side": self.side,
+             "mic_positions": self.mic_positions}
+        for key in _ARRAY_OPTIONAL:  # only when set: records of mic4/foa keep format 1's bytes
+            if getattr(self, key) is not None:
+                d[key] = getattr(self, key)
+        return d
 
     @classmethod
     def from_json(cls, d: dict | None) -> "ArrayRecord":
         d = d or {}
-        return cls(d.get("format", ""), d.get("centre"), d.get("yaw"), d.get("side"), d.get("mic_positions"))
+        return cls(d.get("format", ""), d.get("centre"), d.get("yaw"), d.get("side"), d.get("mic_positions"),
+                   *(d.get(k) for k in _ARRAY_OPTIONAL))
+
+
+_ARRAY_OPTIONAL = ("patterns", "orientations", "baffle", "hrtf", "interpolation")
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,125 @@
+"""Where a receiver stands in a room, how it is turned, and what it is (:class:`ArrayPose`)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..choices import Baffle, ReceiverModel
+from ..geometry import Vec3
+from .registry import receiver
+
+
+@dataclass(frozen=True)
+class ArrayPose:
+    """A receiver in a room: which one, where and how it is turned.
+
+    format: the receiver's name (``scene.format``; :mod:`tsel_data.receivers.builtin`).
+    centre: room frame (m). yaw: degrees, the direction of the array's +x axis in the
+    room frame. side: mic4 side length (m). The rest only for receivers that need them
+    (None otherwise, and then absent from recipes, so older recipes keep their bytes):
+    capsules: a custom array's capsule positions ((x, y, z), ...) m, array frame;
+    patterns: its capsules' first-order patterns (``omni``, ``cardioid``, ...; None: all
+    omni); orientations: their axes ((azimuth °, elevation °), ...), array frame;
+    baffle: a sphere array's ``rigid`` or ``open`` baffle (None: open, as recipes made
+    before baffles were modelled); hrtf: a binaural receiver's SOFA file (as the plan
+    names it; Roots say where it is); interpolation: its HRTF lookup (``nearest`` or
+    ``interpolated``).
+    """
+
+    format: str
+    centre: Vec3
+    yaw: float
+    side: float | None = None
+    capsules: tuple | None = None
+    patterns: tuple | None = None
+    orientations: tuple | None = None
+    baffle: str | None = None
+    hrtf: str | None = None
+    interpolation: str | None = None
+
+    @property
+    def spec(self):
+        """This receiver's :class:`~tsel_data.receivers.spec.ReceiverSpec`."""
+        return receiver(self.format)
+
+    def mics(self) -> np.ndarray:
+        """Channel positions [C, 3] in the array frame (metres); coincident channels at the centre."""
+        return self.spec.positions(self)
+
+    @property
+    def n_channels(self) -> int:
+        return len(self.spec.channels(self))
+
+    def channel_names(self) -> tuple:
+        return self.spec.channels(self)
+
+    @property
+    def free_field_omnis(self) -> bool:
+        """Whether every channel is an omnidirectional capsule in the free field (spaced
+        omnis, or a sphere array without its baffle): what pyroomacoustics can render."""
+        spec = self.spec
+        if spec.model == ReceiverModel.SPHERE:
+            return self.baffle in (None, Baffle.OPEN)
+        return spec.model == ReceiverModel.SPACED and all(p == "omni" for p in self.patterns or ())
+
+    def radius(self) -> float:
+        """Distance (m) of the farthest capsule (or the sphere's or head's surface) from the centre."""
+        return array_radius(self)
+
+    def room_mic_points(self) -> list[Vec3]:
+        """Capsule positions in the room frame, in plain Python (validation runs once per
+        planned scene, where numpy's per-call cost dominates). Coincident receivers: the centre."""
+        c, s = math.cos(math.radians(self.yaw)), math.sin(math.radians(self.yaw))
+        spec = self.spec
+        if spec.coincident:
+            local = [(0.0, 0.0, 0.0)]
+        elif spec.size_key == "side":
+            r = self.side / math.sqrt(2.0)
+            local = [(r * math.cos(math.radians(45 + 90 * k)), r * math.sin(math.radians(45 + 90 * k)), 0.0)
+                     for k in range(4)]
+        else:
+            local = self.mics().tolist()
+        x0, y0, z0 = self.centre
+        return [(x0 + c * x - s * y, y0 + s * x + c * y, z0 + z) for x, y, z in local]
+
+    # --- recipes --------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        d = {"format": self.format, "centre": list(self.centre), "yaw": self.yaw, "side": self.side}
+        for key in _OPTIONAL:
+            v = getattr(self, key)
+            if v is not None:
+                d[key] = [list(x) for x in v] if key in ("capsules", "orientations") else (
+                    list(v) if isinstance(v, tuple) else v)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ArrayPose":
+        kw = {k: d.get(k) for k in _OPTIONAL if d.get(k) is not None}
+        for key in ("capsules", "orientations"):
+            if key in kw:
+                kw[key] = tuple(tuple(float(v) for v in row) for row in kw[key])
+        if "patterns" in kw:
+            kw["patterns"] = tuple(kw["patterns"])
+        return cls(d["format"], tuple(d["centre"]), d["yaw"], d.get("side"), **kw)
+
+
+_OPTIONAL = ("capsules", "patterns", "orientations", "baffle", "hrtf", "interpolation")
+
+
+def array_radius(pose) -> float:
+    """Distance (m) of the farthest capsule from the array centre, or the sphere's or the
+    head's radius when larger: what must fit between the array centre and the walls."""
+    spec = pose.spec
+    if spec.size_key == "side":  # a mic4 square: side/√2, in plain Python (rules call it per range)
+        return float(pose.side) / math.sqrt(2.0)
+    pos = spec.positions(pose)
+    reach = float(np.max(np.linalg.norm(pos, axis=1))) if len(pos) else 0.0
+    return max(reach, spec.radius)
+
+
+def mic_positions(fmt: str, side: float | None = None) -> np.ndarray:
+    """Channel positions [C, 3] (array frame) of a receiver that needs nothing but its
+    name and, for mic4, its side (m)."""
+    return ArrayPose(fmt, (0.0, 0.0, 0.0), 0.0, side).mics()
