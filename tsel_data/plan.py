@@ -21,6 +21,7 @@ from .catalog import BUILTIN_DEMO, MIN_CLIPS, CatalogScan, build_catalog, resolv
 from .choices import Pairing, QueryType, Relation, Role, Scenario, SimilarityMeasure, Spatial
 from .clip import Clip
 from .config import Config, rooms_without_bank
+from .config.receiver import hrtf_problem
 from .errors import TselError
 from .recipe import BankRef, QueryPlan, Roots, SceneRecipe, Source
 from .placement import MAX_TRIES, place, place_bank
@@ -74,9 +75,9 @@ def prepare_views(cfg: Config, home: Layout, workers: int = 1,
     while clips are checked (None: on a terminal). Raises the first problem of the
     corpus or the bank.
     """
-    problem = rooms_without_bank(cfg)
-    if problem:
-        raise problem
+    for problem in (rooms_without_bank(cfg), hrtf_problem(cfg)):
+        if problem:
+            raise problem
     corpus_dir = resolve_corpus_dir(cfg, home.demo_corpus)
     catalog = build_catalog(cfg, corpus_dir, workers=workers, progress=progress)
     bank_path = resolve_bank(bank_request(cfg), home.demo_bank)
@@ -90,12 +91,14 @@ def prepare_views(cfg: Config, home: Layout, workers: int = 1,
 
 
 def plan_roots(cfg: Config, home: Layout) -> Roots:
-    """Where the files of ``cfg``'s recipes are on this machine: the corpus folder and the
-    RIR bank (the built-in ones in ``home``, the dataset folder)."""
+    """Where the files of ``cfg``'s recipes are on this machine: the corpus folder, the
+    RIR bank (the built-in ones in ``home``, the dataset folder) and a binaural receiver's HRTF."""
     corpus = home.demo_corpus if cfg.corpus.dir == BUILTIN_DEMO else cfg.corpus.dir
     bank = home.demo_bank if cfg.room.bank == BUILTIN_DEMO_BANK else cfg.room.bank
+    hrtf = cfg.array.hrtf
     return Roots(os.path.abspath(os.path.expanduser(corpus)) if corpus else "",
-                 os.path.abspath(os.path.expanduser(bank)) if bank else "")
+                 os.path.abspath(os.path.expanduser(bank)) if bank else "",
+                 os.path.abspath(os.path.expanduser(hrtf)) if hrtf else "")
 
 
 def bank_request(cfg: Config) -> BankRequest:

@@ -297,12 +297,14 @@ class SceneRecipe:
 @dataclass(frozen=True)
 class Roots:
     """Where a recipe's relative paths point on this machine: ``corpus`` (the corpus
-    folder: clip paths are relative to it) and ``bank`` (the bank file or folder; a
-    config has one bank, so a recipe's bank name just names it). Empty roots leave paths
+    folder: clip paths are relative to it), ``bank`` (the bank file or folder; a config
+    has one bank, so a recipe's bank name just names it) and ``hrtf`` (a binaural
+    receiver's SOFA file, named by the recipe the same way). Empty roots leave paths
     as they are (recipes made with absolute paths)."""
 
     corpus: str = ""
     bank: str = ""
+    hrtf: str = ""
 
     def relative_clip(self, path: str) -> str:
         """A clip's path as a plan stores it: relative to the corpus, with ``/``."""
@@ -319,19 +321,25 @@ class Roots:
     def bank_file(self, rel: str) -> str:
         return self.bank or rel
 
+    def hrtf_file(self, rel: str) -> str:
+        return self.hrtf or rel
+
     def resolve(self, recipe: "SceneRecipe") -> "SceneRecipe":
         """The recipe with the files it names as paths on this machine."""
-        if not self.corpus and not self.bank:
+        if not self.corpus and not self.bank and not self.hrtf:
             return recipe
         sources = tuple(replace(s, audio=self.clip(s.audio)) for s in recipe.sources)
         bank = None if recipe.bank is None else replace(recipe.bank, path=self.bank_file(recipe.bank.path))
-        return replace(recipe, sources=sources, bank=bank)
+        array = recipe.array if not recipe.array.hrtf else replace(recipe.array,
+                                                                   hrtf=self.hrtf_file(recipe.array.hrtf))
+        return replace(recipe, sources=sources, bank=bank, array=array)
 
     def inputs(self, recipes) -> list[tuple[str, str]]:
         """[(name as the plan says it, path here)] of every file ``recipes`` read, sorted."""
         names = {s.audio for r in recipes for s in r.sources}
         out = {(n, self.clip(n)) for n in names}
         out |= {(r.bank.path, self.bank_file(r.bank.path)) for r in recipes if r.bank}
+        out |= {(r.array.hrtf, self.hrtf_file(r.array.hrtf)) for r in recipes if r.array.hrtf}
         return sorted(out)
 
 

@@ -102,7 +102,8 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, fl
             rt60 = measured if rt60 is None else rt60
         elif s.bank is not None:
             b = s.bank
-            rirs = _bank(recipe).views(b.room, b.trajectory, b.indices)
+            # a mixed receiver (stereo from FOA) mixes its base's measured RIRs
+            rirs = [array.spec.mixed(r) for r in _bank(recipe).views(b.room, b.trajectory, b.indices)]
             if len(rirs) == 1:
                 images[k] = convolve(dry[k:k + 1], rirs[0][None], n)[0]
             else:

@@ -2,10 +2,14 @@
 
 Per label frame we compute an azimuth map (360 one-degree bins, array frame):
 
-- **mic arrays** (mic4, tetra): SRP-PHAT (DiBiase, 2000), the sum over all mic pairs
-  of the GCC-PHAT at the pair's far-field delay ``τ_ij(u) = -(p_i - p_j)·u / c`` for a
-  grid of directions u (1° azimuth × a few elevations, maximum over elevation). The
-  mic positions come from the scene (``mic_positions``).
+- **mic arrays** (the receivers whose spec's localizer is ``srp``): SRP-PHAT (DiBiase,
+  2000), the sum over all mic pairs of the GCC-PHAT at the pair's far-field delay
+  ``τ_ij(u) = -(p_i - p_j)·u / c`` for a grid of directions u (1° azimuth × a few
+  elevations, maximum over elevation; a line of mics: the horizontal plane only). The
+  mic positions come from the scene (``mic_positions``). Capsules on a rigid sphere
+  are steered at the sphere's own delays (acoustics/sphere.py, rigid_sphere_delay).
+- **the DCASE stereo pair** (L = W + Y, R = W - Y): each bin's level difference, in
+  phase and at onsets, reads as the angle from the median plane.
 - **FOA**: the active acoustic intensity vector (Merimaa & Pulkki; Ahonen et al.)
   ``I(t, f) = Re{W*(t, f) · [X, Y, Z](t, f)}`` per time-frequency bin; its azimuth
   ``atan2(I_y, I_x)`` is histogrammed with weight ``|I_xy|`` and smoothed.
@@ -39,6 +43,8 @@ import numpy as np
 from .features import mic_pairs, stft
 from .geometry import SOUND_SPEED, azimuth_difference, circular_mean, sph_to_cart, wrap_azimuth
 from .progress import bar
+from .acoustics.sphere import rigid_sphere_delay
+from .choices import Baffle, ReceiverModel
 from .receivers import receiver
 from .store.reader import list_splits, open_dataset
 
@@ -46,7 +52,8 @@ _EPS = 1e-12
 
 
 def doa_maps(audio, fs: int, label_hop: float, n_frames: int, fmt: str, mic_positions=None,
-             n_fft: int = 1024, fmin: float = 200.0, fmax: float = 8000.0, dynamic_db: float = 20.0) -> np.ndarray:
+             n_fft: int = 1024, fmin: float = 200.0, fmax: float = 8000.0, dynamic_db: float = 20.0,
+             baffle: str | None = None) -> np.ndarray:
     """Azimuth maps per label frame: audio [C, T] -> float64 [n_frames, 360] (bin k = k degrees).
 
     Higher means more evidence for a source there. STFT frames (hop n_fft/2) are
@@ -56,7 +63,7 @@ def doa_maps(audio, fs: int, label_hop: float, n_frames: int, fmt: str, mic_posi
     won by whatever faint residue (another source's tail, an additive bed) fills them.
     """
     spec, owner, freqs = label_stft(audio, fs, label_hop, n_frames, n_fft)
-    return _maps(spec, owner, freqs, fs, n_frames, fmt, mic_positions, n_fft, fmin, fmax, dynamic_db)
+    return _maps(spec, owner, freqs, fs, n_frames, fmt, mic_positions, n_fft, fmin, fmax, dynamic_db, baffle)
 
 
 def label_stft(audio, fs: int, label_hop: float, n_frames: int, n_fft: int = 1024):
@@ -70,15 +77,24 @@ def label_stft(audio, fs: int, label_hop: float, n_frames: int, n_fft: int = 102
     return spec[:, keep], owner[keep], np.fft.rfftfreq(n_fft, 1.0 / fs)
 
 
-def _maps(spec, owner, freqs, fs, n_frames, fmt, mic_positions, n_fft, fmin, fmax, dynamic_db) -> np.ndarray:
+def _maps(spec, owner, freqs, fs, n_frames, fmt, mic_positions, n_fft, fmin, fmax, dynamic_db,
+          baffle=None) -> np.ndarray:
     band = (freqs >= fmin) & (freqs <= min(fmax, fs / 2))
     spec = spec[:, :, band]
     power = np.mean(np.abs(spec) ** 2, axis=0)  # [J, K]
     mask = power >= power.max(axis=1, keepdims=True) * 10 ** (-dynamic_db / 10)
     mask &= power > 0
-    if receiver(fmt).localizer == "intensity":
+    localizer = receiver(fmt).localizer
+    if localizer == "intensity":
         return _intensity_maps(spec, mask, owner, n_frames)
-    return _srp_maps(spec, mask, owner, n_frames, band, n_fft, np.asarray(mic_positions, dtype=np.float64), fs)
+    if localizer == "mid-side":
+        return _mid_side_maps(spec, mask, owner, n_frames)
+    rx = receiver(fmt)
+    # capsules on a rigid sphere hear a wave later than free-field omnis would (the sphere's
+    # phase): steer at the sphere's delays
+    sphere = rx.radius if rx.model == ReceiverModel.SPHERE and baffle == Baffle.RIGID else None
+    return _srp_maps(spec, mask, owner, n_frames, band, n_fft, np.asarray(mic_positions, dtype=np.float64), fs,
+                     sphere=sphere, fmin=fmin, fmax=fmax)
 
 
 def _per_label_frame(x: np.ndarray, owner: np.ndarray, n_frames: int) -> np.ndarray:
@@ -90,7 +106,8 @@ def _per_label_frame(x: np.ndarray, owner: np.ndarray, n_frames: int) -> np.ndar
     return out
 
 
-def _srp_maps(spec, mask, owner, n_frames, band, n_fft, mics, fs, up: int = 4) -> np.ndarray:
+def _srp_maps(spec, mask, owner, n_frames, band, n_fft, mics, fs, up: int = 4, sphere: float | None = None,
+              fmin: float = 200.0, fmax: float = 8000.0) -> np.ndarray:
     pairs = np.array(mic_pairs(spec.shape[0]))
     cross = spec[pairs[:, 0]] * np.conj(spec[pairs[:, 1]])  # [P, J, K in band]
     cross = np.where(mask, cross / (np.abs(cross) + _EPS), 0.0)
@@ -98,12 +115,22 @@ def _srp_maps(spec, mask, owner, n_frames, band, n_fft, mics, fs, up: int = 4) -
     summed[:, :, band] = _per_label_frame(cross.transpose(1, 0, 2), owner, n_frames)
     n = n_fft * up  # zero-padded inverse FFT: GCC interpolated to 1/up sample
     gcc = np.fft.irfft(summed, n=n, axis=-1)  # [F, P, n]; lag τ at index τ·fs·up mod n
-    # A planar array cannot tell up from down: search the upper half only.
+    # A planar array cannot tell up from down: search the upper half only. A line hears
+    # only the angle to its axis, which the horizontal plane holds once.
     planar = np.ptp(mics[:, 2]) < 1e-6
-    els = np.arange(0.0, 61.0, 15.0) if planar else np.arange(-60.0, 61.0, 15.0)
+    centred = mics - mics.mean(axis=0)
+    linear = np.linalg.svd(centred, compute_uv=False)[1] < 1e-6 * max(1.0, float(np.abs(centred).max()))
+    els = np.zeros(1) if linear else np.arange(0.0, 61.0, 15.0) if planar else np.arange(-60.0, 61.0, 15.0)
     u = sph_to_cart(np.arange(360.0)[None, :], els[:, None], 1.0)  # [E, 360, 3]
-    dp = mics[pairs[:, 0]] - mics[pairs[:, 1]]  # [P, 3]
-    tau = -np.einsum("pc,eac->pea", dp, u) / SOUND_SPEED  # [P, E, 360] seconds
+    if sphere:
+        normals = mics / np.linalg.norm(mics, axis=1, keepdims=True)
+        cos = np.einsum("cd,ead->cea", normals, u)  # [C, E, 360]
+        grid = np.linspace(-1.0, 1.0, 721)
+        delay = np.interp(cos, grid, rigid_sphere_delay(grid, sphere, fmin, fmax))  # s, per capsule
+        tau = delay[pairs[:, 0]] - delay[pairs[:, 1]]
+    else:
+        dp = mics[pairs[:, 0]] - mics[pairs[:, 1]]  # [P, 3]
+        tau = -np.einsum("pc,eac->pea", dp, u) / SOUND_SPEED  # [P, E, 360] seconds
     idx = np.rint(tau * fs * up).astype(int) % n
     maps = np.zeros((n_frames, len(els), 360))
     for p in range(len(pairs)):
@@ -121,6 +148,50 @@ def _intensity_maps(spec, mask, owner, n_frames, smooth_deg: float = 4.0) -> np.
     flat = (np.arange(n_j)[:, None] * 360 + bins).ravel()
     hist = np.bincount(flat, weights=weight.ravel(), minlength=n_j * 360).reshape(n_j, 360)
     return _smooth_circular(_per_label_frame(hist, owner, n_frames), smooth_deg)
+
+
+def _mid_side_maps(spec, mask, owner, n_frames, smooth_deg: float = 4.0) -> np.ndarray:
+    """A coincident pair L = W + Y, R = W - Y (DCASE 2025 stereo): a plane wave from
+    (φ, θ) gives |L| - |R| = 2 sin φ cos θ and |L| + |R| = 2 (for |sin φ cos θ| ≤ 1), so
+    each bin votes for φ = asin((|L| - |R|) / (|L| + |R|)) in [-90°, 90°] with its power:
+    the pair cannot tell φ from 180° - φ, nor hear elevation (a source at θ reads as
+    asin(sin φ cos θ))."""
+    left, right = np.abs(spec[0]), np.abs(spec[1])
+    s = (left - right) / np.maximum(left + right, _EPS)
+    az = np.degrees(np.arcsin(np.clip(s, -1.0, 1.0)))
+    # a plane wave reaches both cardioids in phase, reverberation at random phases: bins
+    # whose channels are out of phase (a diffuse field, which pulls the ratio to 0) count less
+    inphase = np.maximum(np.real(spec[0] * np.conj(spec[1])) / np.maximum(left * right, _EPS), 0.0) ** 8
+    # ... and the direct sound leads: bins rising above their previous frame carry it
+    # (the precedence effect's cue), bins of a decaying tail carry the room
+    power = left ** 2 + right ** 2
+    prev = np.vstack([np.full((1, power.shape[1]), np.inf), power[:-1]])
+    onset = np.clip(1.0 - prev / np.maximum(power, _EPS), 0.0, 1.0)
+    weight = power * inphase * onset * mask
+    bins = np.floor(az + 0.5).astype(int) % 360
+    n_j = spec.shape[1]
+    flat = (np.arange(n_j)[:, None] * 360 + bins).ravel()
+    hist = np.bincount(flat, weights=weight.ravel(), minlength=n_j * 360).reshape(n_j, 360)
+    return _smooth_circular(_per_label_frame(hist, owner, n_frames), smooth_deg)
+
+
+def fold_front_back(az):
+    """Azimuth (deg) folded onto the front half-plane, [-90, 90]: φ and 180° - φ are one
+    direction to a receiver that cannot tell front from back (the DCASE 2025 stereo labels)."""
+    a = wrap_azimuth(az)
+    return np.where(a > 90.0, 180.0 - a, np.where(a < -90.0, -180.0 - a, a))
+
+
+def lateral_angle(az, el):
+    """The angle (deg, [-90, 90]) of a direction from the median plane, asin(sin φ cos θ):
+    all a line of mics along y or a coincident left/right pair hears of it (the cone of
+    confusion); at θ = 0 it is the azimuth folded front to back."""
+    a, e = np.radians(az), np.radians(el)
+    return np.degrees(np.arcsin(np.clip(np.sin(a) * np.cos(e), -1.0, 1.0)))
+
+
+def _lateral(fmt: str) -> bool:
+    return receiver(fmt).ambiguity == "lateral"
 
 
 def _smooth_circular(hist: np.ndarray, smooth_deg: float) -> np.ndarray:
@@ -188,6 +259,8 @@ REASONS = {
              "into standing waves that point anywhere",
     "reverberant": "it is more than 4 critical distances away in its room: the reverberant sound is over 12 dB "
                    "louder than the direct sound",
+    "receiver": "the receiver is not one a classical localizer here reads (two ears: SRP-PHAT and the intensity "
+                "vector need an array or FOA)",
 }
 
 
@@ -206,12 +279,17 @@ def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: in
         scene with no source to judge, the weaker check of :func:`_loudest` (``frames``,
         ``source`` nearest, ``error``, ``agree``) or None.
     """
+    if not receiver(scene.format).localizer:
+        skipped = [{"source": s, "role": r.role, "reason": "receiver", "detail": receiver(scene.format).unjudged}
+                   for s, r in enumerate(scene.record.sources) if np.isfinite(scene.azimuth[s]).any()]
+        return {"scene_id": scene.scene_id, "status": "untested", "sources": [], "skipped": skipped, "loudest": None}
     n_fft = map_kw.get("n_fft", 1024)
     fmin, fmax = map_kw.get("fmin", 200.0), map_kw.get("fmax", 8000.0)
     spec, owner, freqs = label_stft(scene.audio, scene.fs, scene.label_hop, scene.n_frames, n_fft)
     maps = _maps(spec, owner, freqs, scene.fs, scene.n_frames, scene.format, scene.mic_positions, n_fft, fmin,
-                 min(fmax, scene.fs / 2), map_kw.get("dynamic_db", 20.0))
-    az_all = scene.azimuth.astype(np.float64)
+                 min(fmax, scene.fs / 2), map_kw.get("dynamic_db", 20.0), scene.record.array.baffle)
+    az_all, el_all = scene.azimuth.astype(np.float64), scene.elevation.astype(np.float64)
+    lateral = _lateral(scene.format)
     directional = [s for s in range(scene.n_sources) if np.isfinite(az_all[s]).any()]
     roles = [src.role for src in scene.record.sources]
     active = scene.active.astype(bool)
@@ -242,8 +320,12 @@ def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: in
         errs, ests, truths = [], [], []
         for g in groups:
             est = float(np.argmax(vote_histogram(maps[g])))
-            truth = circular_mean(az_all[s][g])
-            errs.append(float(azimuth_difference(est, truth)))
+            if lateral:  # judged on what the receiver hears: the angle from the median plane
+                est, truth = float(fold_front_back(est)), float(np.mean(lateral_angle(az_all[s][g], el_all[s][g])))
+                errs.append(abs(est - truth))
+            else:
+                truth = circular_mean(az_all[s][g])
+                errs.append(float(azimuth_difference(est, truth)))
             ests.append(float(wrap_azimuth(est)))
             truths.append(truth)
         i = int(np.argsort(errs)[len(errs) // 2])  # the median window: its label and estimate explain the error
@@ -271,7 +353,11 @@ def _loudest(scene, maps, directional, active, az_all, tolerance, min_frames, wi
     errs, near = [], []
     for g in [g for g in np.split(frames, np.flatnonzero(np.diff(frames // window)) + 1) if len(g)]:
         est = float(np.argmax(vote_histogram(maps[g])))
-        e = [float(azimuth_difference(est, circular_mean(az_all[s][g]))) for s in directional]
+        if _lateral(scene.format):
+            e = [abs(float(fold_front_back(est)) - float(np.mean(lateral_angle(az_all[s][g], scene.elevation[s][g]))))
+                 for s in directional]
+        else:
+            e = [float(azimuth_difference(est, circular_mean(az_all[s][g]))) for s in directional]
         errs.append(min(e))
         near.append(directional[int(np.argmin(e))])
     i = int(np.argsort(errs)[len(errs) // 2])

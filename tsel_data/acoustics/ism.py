@@ -103,6 +103,15 @@ def _fd_bank() -> np.ndarray:
     return np.sinc(x) * w
 
 
+def fd_bank() -> np.ndarray:
+    """The interpolator's tabulated filters [FD_PHASES + 1, FD_TAPS] (read-only): row p
+    delays by p / FD_PHASES sample; tap j sits at offset j - FD_TAPS/2 + 1 from the
+    delay's integer part (see :func:`grid_to_signal`)."""
+    bank = _fd_bank()
+    bank.setflags(write=False)
+    return bank
+
+
 def fd_energy_gain() -> float:
     """Mean energy Σh² of the interpolator over fractional delays (≈ 0.9-1): the share
     of a unit impulse's energy that survives the band limit. Used to level the tail."""

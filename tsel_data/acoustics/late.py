@@ -60,6 +60,36 @@ def diffuse_noise(
     return sfft.irfft(mixed, n=n_fft, axis=-1, workers=1)[..., :n]
 
 
+def csd_noise(rng: np.random.Generator, n_sets: int, n: int, fs: int, csd, coarse: int = 513) -> np.ndarray:
+    """``n_sets`` independent stationary noises [n_sets, C, n] whose cross-spectral
+    density is ``csd(freqs) -> [F, C, C]`` (Hermitian, positive semi-definite; e.g. a
+    receiver's diffuse field, acoustics/capsules.py), white-noise scaled: channel i has
+    PSD Φ_ii(f) (variance 1 where Φ_ii = 1).
+
+    As :func:`diffuse_noise`: independent spectra mixed per bin by the Cholesky factor of
+    Φ(f) + εI, computed on ``coarse`` bins and interpolated (real and imaginary parts)."""
+    n_fft = sfft.next_fast_len(n, real=True)
+    f_coarse = np.linspace(0.0, fs / 2, coarse)
+    phi = np.asarray(csd(f_coarse))
+    n_ch = phi.shape[-1]
+    scale = np.maximum(np.real(np.trace(phi, axis1=1, axis2=2)) / n_ch, 1e-12)
+    chol = np.linalg.cholesky(phi + (1e-6 * scale)[:, None, None] * np.eye(n_ch))  # [F, C, C]
+    f = sfft.rfftfreq(n_fft, 1.0 / fs)
+    cplx = np.iscomplexobj(chol) and np.any(np.imag(chol) != 0)
+    factor = np.zeros((n_ch, n_ch, len(f)), dtype=np.complex64 if cplx else np.float32)
+    for i in range(n_ch):
+        for j in range(i + 1):
+            re = np.interp(f, f_coarse, np.real(chol[:, i, j]))
+            factor[i, j] = re + 1j * np.interp(f, f_coarse, np.imag(chol[:, i, j])) if cplx else re
+    if cplx:  # a real signal's DC and Nyquist bins are real
+        factor[..., 0] = factor[..., 0].real
+        if n_fft % 2 == 0:
+            factor[..., -1] = factor[..., -1].real
+    spec = sfft.rfft(rng.standard_normal((n_sets, n_ch, n_fft), dtype=np.float32), axis=-1, workers=1)
+    mixed = np.einsum("ijf,sjf->sif", factor, spec)
+    return sfft.irfft(mixed, n=n_fft, axis=-1, workers=1)[..., :n]
+
+
 def _coherence_factor(pos: np.ndarray, n_fft: int, fs: int, coarse: int = 513) -> np.ndarray:
     """Cholesky factors L(f) [C, C, F] (float32) of Γ(f) + εI at the rfft bins of n_fft.
 

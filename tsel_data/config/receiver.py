@@ -4,6 +4,7 @@ radius), built in one place from ``scene.format`` and ``[array]``."""
 from __future__ import annotations
 
 import math
+import os
 
 from ..choices import ReceiverModel
 from ..errors import ConfigError
@@ -28,7 +29,8 @@ def array_pose(cfg: Config, centre=(0.0, 0.0, 0.0), yaw: float = 0.0, side: floa
     if spec.model == ReceiverModel.SPHERE:
         kw["baffle"] = a.baffle
     if spec.model == ReceiverModel.HRTF:
-        kw["hrtf"] = hrtf if hrtf is not None else a.hrtf
+        # the recipe names the file as the bank's is named; Roots.hrtf says where it is
+        kw["hrtf"] = hrtf if hrtf is not None else os.path.basename(os.path.normpath(a.hrtf))
         kw["interpolation"] = a.hrtf_interpolation
     return ArrayPose(spec.name, tuple(centre), yaw, side if spec.size_key == "side" else None, **kw)
 
@@ -132,3 +134,22 @@ def _capsule_problems(a, where: str) -> list[ConfigError]:
 
 def _shown(v) -> str:
     return repr(list(v) if isinstance(v, tuple) else v)
+
+
+def hrtf_problem(cfg: Config) -> ConfigError | None:
+    """A binaural receiver's HRTF that cannot be used: missing, not a SOFA
+    SimpleFreeFieldHRIR file (acoustics/hrtf.py says what is wrong), one line."""
+    if receiver(cfg.scene.format).model != ReceiverModel.HRTF or not cfg.array.hrtf:
+        return None
+    path = os.path.abspath(os.path.expanduser(cfg.array.hrtf))
+    if not os.path.isfile(path):
+        return ConfigError(f"array.hrtf: {path} not found; give the path of a SOFA HRTF file (SimpleFreeFieldHRIR)")
+    from ..acoustics.hrtf import read_hrtf  # h5py and scipy.fft: only binaural configs pay for them
+
+    try:
+        read_hrtf(path, cfg.audio.fs)
+    except OSError as e:
+        return ConfigError(f"array.hrtf: {path}: cannot read it ({e.strerror or e})")
+    except ConfigError as e:
+        return e
+    return None

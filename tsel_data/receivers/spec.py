@@ -81,8 +81,9 @@ class ReceiverSpec:
     mixing. localizer: how ``tsel verify`` hears it (``srp``: SRP-PHAT over capsule
     pairs; ``intensity``: the FOA intensity vector; empty: not judged, ``unjudged``
     says why). export_folder: the DCASE layout's audio folder prefix. source: where the
-    geometry comes from (docs). ambiguity: what the receiver cannot tell apart (docs,
-    verify). configured: its capsules come from the config (``array.capsules``: custom).
+    geometry comes from (docs). ambiguity: what the receiver cannot tell apart (docs;
+    ``lateral``: it hears only the angle from the median plane, asin(sin φ cos θ), so
+    verify judges that). configured: its capsules come from the config (``array.capsules``: custom).
     """
 
     name: str
@@ -166,6 +167,14 @@ class ReceiverSpec:
         if list(lc) == list(range(lc[0], lc[-1] + 1)):
             return slice(lc[0], lc[-1] + 1)
         return list(lc)
+
+    def mixed(self, base_signals: np.ndarray) -> np.ndarray:
+        """Signals [..., C_base, T] of the base receiver as this one's [..., C, T] (the
+        ``matrix`` model; others get them back as they are)."""
+        if not self.matrix:
+            return base_signals
+        m = np.asarray(self.matrix, dtype=np.float32)
+        return np.einsum("cb,...bt->...ct", m, np.asarray(base_signals, dtype=np.float32))
 
     def additive_gains(self, n_channels: int) -> np.ndarray:
         return np.ones(n_channels) if not self.additive else np.asarray(self.additive, dtype=np.float64)

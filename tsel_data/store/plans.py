@@ -61,7 +61,7 @@ def plan_doc(config: dict, clips: dict[str, int], bad_clips: int, missing_clips:
 
 
 # config keys that name files outside the dataset (the roots of its relative paths)
-ROOT_KEYS = ("corpus.dir", "room.bank", "corpus.caption_embeddings")
+ROOT_KEYS = ("corpus.dir", "room.bank", "corpus.caption_embeddings", "array.hrtf")
 
 
 def _map_roots(config: dict, fn) -> dict:
