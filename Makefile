@@ -32,12 +32,15 @@ demo: $(STAMP)
 	@echo "demo dataset in $(DEMO_OUT)/ (dataset.json; pictures: stats.png, test-000000.png)"
 	@echo "moving-source demo dataset in $(DEMO_MOVING_OUT)/"
 
+# Two processes, one per core of the machines we test on (the suite's fixtures are built once per process).
+PYTEST_WORKERS ?= 2
+
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS)
 
 # Everything but the slow end-to-end tests.
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) -m "not slow"
 
 $(BASELINE_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet "$(TORCH)"

@@ -33,7 +33,7 @@ from pathlib import Path
 DOCS = Path(__file__).resolve().parent
 REPO = DOCS.parent
 PAGES = ["commands/generate.md", "commands/check.md", "commands/inspect.md", "commands/stats.md",
-         "commands/export.md", "commands/eval.md", "commands/verify.md", "config.md", "scaling.md"]
+         "commands/export.md", "commands/eval.md", "commands/verify.md", "config.md", "scaling.md", "acoustics.md"]
 # pictures the pages show, copied from the sandbox when outputs are rewritten
 PICTURES = {"work/inspect.png": "commands/img/inspect-test-000000.png", "work/stats.png": "commands/img/stats-demo.png"}
 _MARK = re.compile(r"^<!-- (run|file)(?::\s*(.*?))? -->$")
@@ -112,7 +112,8 @@ class Sandbox:
         (bin_dir / "sbatch").chmod(0o755)
         venv = REPO / ".venv" / "bin"
         self.env = {**os.environ, "PATH": f"{bin_dir}:{venv}:{os.environ.get('PATH', '')}",
-                    "TSEL_CACHE_DIR": str(root / "cache"), "PYTHONHASHSEED": "0", "COLUMNS": "120"}
+                    "TSEL_CACHE_DIR": str(root / "cache"), "PYTHONHASHSEED": "0", "COLUMNS": "120",
+                    "HF_HOME": str(root / "hf"), "HF_HUB_OFFLINE": "1"}  # datasets caches in the sandbox
         self.python = str(venv / "python") if (venv / "python").exists() else sys.executable
 
     def into(self, text: str) -> str:

@@ -56,7 +56,7 @@ def test_presets_say_what_they_need(capsys):
 
 
 @pytest.mark.parametrize("override, needle", [
-    ("scene.format=xyz", "error: --set scene.format=xyz: scene.format = 'xyz' is not one of mic4, foa, tetra"),
+    ("scene.format=xyz", "error: --set scene.format=xyz: scene.format = 'xyz' is not one of mic4, foa, tetra, em32"),
     ('room.width=["uniform", 9.0, 6.0]', 'error: --set room.width=["uniform", 9.0, 6.0]: room.width: uniform range '
                                          'has min 9.0 > max 6.0; swap them'),
     ("room.rt7=1", "error: --set room.rt7=1: unknown config key room.'rt7'; did you mean room.rt60?"),

@@ -182,3 +182,31 @@ def test_every_model_renders_its_channel_count():
     for name in ("mic4", "foa", "tetra", "em32", "respeaker-4", "respeaker-6", "uma8", "linear8", "stereo"):
         pose = ArrayPose(name, CENTRE, 0.0, 0.11 if name == "mic4" else None, baffle="rigid")
         assert capsule_model(pose, FS).n_channels == pose.n_channels
+
+
+def test_a_binaural_dataset_end_to_end_and_a_file_that_is_not_an_hrtf(hrtf, tmp_path, demo_corpus, capsys):
+    """tsel generate with two ears: the record names the HRTF as the plan does (its file
+    name), verify says why it cannot judge ears; a SOFA file that is not an HRTF is one
+    line at tsel check, exit 2."""
+    from hrtffixtures import make_broken_hrtf
+    from tsel_data import open_dataset
+    from tsel_data.cli import main
+
+    out = tmp_path / "ears"
+    base = ["--preset", "demo", "--corpus-dir", demo_corpus, "--split", "train=0", "--split", "val=0",
+            "--split", "test=2", "--set", "audio.duration=2.0", "--set", 'scene.format="binaural"']
+    with pytest.raises(SystemExit) as e:
+        main(["generate", *base, "--set", f'array.hrtf="{hrtf}"', "--out", str(out)])
+    assert e.value.code == 0
+    scene = open_dataset(str(out), "test")[0]
+    assert scene.audio.shape[0] == 2 and scene.record.array.hrtf == "head.sofa"
+    with pytest.raises(SystemExit) as e:
+        main(["verify", str(out), "--quiet"])
+    assert e.value.code == 0 and "two ears" in capsys.readouterr().out
+    bad = make_broken_hrtf(tmp_path / "room.sofa", "conventions")
+    with pytest.raises(SystemExit) as e:
+        main(["check", *base, "--set", f'array.hrtf="{bad}"', "--no-plan"])
+    assert e.value.code == 2
+    got = capsys.readouterr()
+    errors = [line for line in (got.out + got.err).splitlines() if line.startswith("error")]
+    assert len(errors) == 1 and "room.sofa" in errors[0], errors

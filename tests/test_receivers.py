@@ -109,3 +109,14 @@ def test_a_coincident_pair_of_directional_capsules_aimed_apart_is_an_array():
     pose = array_pose(cfg, (3.0, 3.0, 1.5), 0.0)
     assert pose.n_channels == 2 and pose.patterns == ("cardioid", "cardioid")
     assert pose.orientations == ((45.0, 0.0), (-45.0, 0.0))
+
+
+def test_the_receivers_table_of_the_docs_is_the_registry():
+    """docs/format.md's table is generated (python -m tsel_data.receivers.doc docs/format.md)."""
+    import pathlib
+
+    from tsel_data.receivers.doc import render
+
+    text = (pathlib.Path(__file__).parent.parent / "docs" / "format.md").read_text(encoding="utf-8")
+    assert "<!-- receivers -->" in text and render(text) == text, \
+        "docs/format.md is stale: run python -m tsel_data.receivers.doc docs/format.md"

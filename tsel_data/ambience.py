@@ -124,28 +124,39 @@ class Recording:
         scene's generator; one draw). ``consecutive``: offset = (index mod blocks) ·
         n_samples, ``rng`` unused. Only those samples are read from the file.
         """
+        offset = self.offset(rng, n_samples, rule, index)
+        return offset, read_segment(self.path, offset, int(n_samples), self.frames)
+
+    def offset(self, rng: np.random.Generator | None, n_samples: int, rule: str = "random", index: int = 0) -> int:
+        """Where the scene's stretch starts (samples), by ``rule`` (see :meth:`segment`),
+        without reading the file: the planner draws it, the renderer reads it."""
         if rule not in SEGMENT_RULES:
             raise ConfigError(f"unknown ambience segment rule {rule!r}; choose one of {', '.join(SEGMENT_RULES)}")
         n_samples = int(n_samples)
         self.check_length(n_samples)
         if rule == "consecutive":
-            offset = (int(index) % self.blocks(n_samples)) * n_samples
-        else:
-            if rng is None:
-                raise ValueError("a random ambience segment needs the scene's generator (rng)")
-            offset = int(rng.integers(0, self.frames - n_samples + 1))
-        try:
-            x, _ = sf.read(self.path, start=offset, stop=offset + n_samples, dtype="float32", always_2d=True)
-        except (sf.LibsndfileError, RuntimeError, OSError) as e:
-            raise ConfigError(f"cannot read ambience {self.path}: {_first_line(e)}; replace the file or "
-                              f"remove it from the ambience folder") from None
-        if x.shape[0] != n_samples:
-            raise ConfigError(f"ambience {self.path} ends at sample {offset + x.shape[0]}, before the "
-                              f"{self.frames} its header declares: the file is truncated; replace it")
-        if not np.all(np.isfinite(x)):
-            raise ConfigError(f"ambience {self.path} holds NaN or Inf samples in {offset} … "
-                              f"{offset + n_samples}; replace the file")
-        return offset, np.ascontiguousarray(x.T)
+            return (int(index) % self.blocks(n_samples)) * n_samples
+        if rng is None:
+            raise ValueError("a random ambience segment needs the scene's generator (rng)")
+        return int(rng.integers(0, self.frames - n_samples + 1))
+
+
+def read_segment(path: str, offset: int, n_samples: int, frames: int | None = None) -> np.ndarray:
+    """Samples ``offset`` … ``offset + n_samples`` of an ambience recording, float32 [C, n]
+    (only those are read); ConfigError for an unreadable, truncated or non-finite file."""
+    try:
+        x, _ = sf.read(path, start=offset, stop=offset + n_samples, dtype="float32", always_2d=True)
+    except (sf.LibsndfileError, RuntimeError, OSError) as e:
+        raise ConfigError(f"cannot read ambience {path}: {_first_line(e)}; replace the file or "
+                          f"remove it from the ambience folder") from None
+    if x.shape[0] != n_samples:
+        declared = f"the {frames} its header declares" if frames is not None else "the scene's end"
+        raise ConfigError(f"ambience {path} ends at sample {offset + x.shape[0]}, before {declared}: the file is "
+                          f"truncated; replace it")
+    if not np.all(np.isfinite(x)):
+        raise ConfigError(f"ambience {path} holds NaN or Inf samples in {offset} … "
+                          f"{offset + n_samples}; replace the file")
+    return np.ascontiguousarray(x.T)
 
 
 @dataclass(frozen=True)

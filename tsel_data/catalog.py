@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 import os
 import unicodedata
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 from .atomic import write_json, write_lines
@@ -27,6 +26,7 @@ from .clip import Clip
 from .clipcache import ClipCache, file_key, settings_key
 from .config import Config
 from .errors import AudioError, ConfigError, ManifestError, TselError
+from .executors import Runner, ordered_pool
 from .manifests import read_manifest
 from .progress import bar
 
@@ -351,7 +351,7 @@ def check_clips(clips: list[Clip], cfg: Config, workers: int = 1, progress: bool
         with bar(len(todo), desc, "clip", progress if todo else False) as b:
             jobs = [args[i] for i in todo]
             if workers > 1 and level == "full" and len(jobs) > 64:
-                with ProcessPoolExecutor(workers) as ex:
+                with ordered_pool(workers) as ex:
                     results = list(_counted(ex.map(_check, jobs, chunksize=16), b))
             else:
                 results = list(_counted(map(_check, jobs), b))
@@ -376,15 +376,11 @@ def prepare_corpus(cfg: Config, clips: dict[str, list[Clip]], workers: int = 1, 
     duration. Returns {"made": n, "kept": n} (kept: already prepared)."""
     jobs = [(c.audio, cfg.audio.fs, cfg.audio.duration, c.offset) for split in clips for c in clips[split]]
     made = 0
-    if workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(workers) as ex:
-            for done in ex.map(_prepare, jobs, chunksize=16):
-                made += done
-                if progress:
-                    progress()
-    else:
-        for job in jobs:
-            made += _prepare(job)
+    # the runner of the shards: a first SIGINT or SIGTERM lets the clips in flight be
+    # written (each whole), then stops; a second stops at once
+    with Runner(workers=workers if len(jobs) > 1 else 1, noun="clip") as runner:
+        for done in runner.map_unordered(_prepare, jobs):
+            made += done
             if progress:
                 progress()
     return {"made": made, "kept": len(jobs) - made}

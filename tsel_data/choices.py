@@ -21,6 +21,38 @@ class ReceiverModel(StrEnum):
     MATRIX = "matrix"
 
 
+class LevelModel(StrEnum):
+    """``scene.levels``: interferers at a target-to-interferer ratio, or levels that follow distance."""
+
+    TIR = "tir"
+    DISTANCE = "distance"
+
+
+class NoiseSpectrum(StrEnum):
+    """``noise.diffuse``: the spectrum of a simulated diffuse noise field."""
+
+    NONE = "none"
+    WHITE = "white"
+    PINK = "pink"
+    BROWN = "brown"
+    CLIP = "clip"
+
+
+class SensorLevel(StrEnum):
+    """``noise.sensor``: sensor noise off, at a level in dBFS, or at an SNR."""
+
+    NONE = "none"
+    DBFS = "dbfs"
+    SNR = "snr"
+
+
+class SegmentRule(StrEnum):
+    """``noise.ambience_segments``: which stretch of an ambience recording a scene hears."""
+
+    RANDOM = "random"
+    CONSECUTIVE = "consecutive"
+
+
 class Baffle(StrEnum):
     """``array.baffle``: capsules of a sphere array on a rigid sphere (scattering) or open."""
 
@@ -119,6 +151,13 @@ class CheckLevel(StrEnum):
 class BadClipPolicy(StrEnum):
     SKIP = "skip"
     FAIL = "fail"
+
+
+class MissingClipPolicy(StrEnum):
+    """What ``tsel generate --from REL`` does with a scene whose clip is missing."""
+
+    SKIP = "skip"
+    SUBSTITUTE = "substitute"
 
 
 class Executor(StrEnum):

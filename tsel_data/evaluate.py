@@ -71,11 +71,14 @@ class EvalResult:
     by_query: dict = field(default_factory=dict)
     by_relation: dict = field(default_factory=dict)
     by_pairing: dict = field(default_factory=dict)
+    by_snr: dict = field(default_factory=dict)  # only for datasets with [noise]
 
     def to_dict(self, per_scene: bool = True) -> dict:
         d = {"split": self.split, "overall": self.overall, "by_scenario": self.by_scenario,
              "by_motion": self.by_motion, "by_query": self.by_query, "by_relation": self.by_relation,
              "by_pairing": self.by_pairing}
+        if self.by_snr:
+            d["by_snr"] = self.by_snr
         if per_scene:
             d["per_scene"] = self.per_scene
         return d
@@ -91,7 +94,7 @@ class EvalResult:
 
         lines.append(row("all", self.overall))
         for title, groups in (("scenario", self.by_scenario), ("motion", self.by_motion), ("query", self.by_query),
-                              ("relation", self.by_relation), ("pairing", self.by_pairing)):
+                              ("relation", self.by_relation), ("pairing", self.by_pairing), ("snr", self.by_snr)):
             for name, r in groups.items():
                 lines.append(row(f"{title}={name}", r))
         return "\n".join(lines)
@@ -221,7 +224,7 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
         raise PredictionError(f"{len(missing)} of {len(ids)} scenes of split {split!r} have no prediction, e.g. "
                               f"{missing[0]!r}; the file must predict every scene")
     per_scene, groups_sc, groups_mo, all_err = [], {}, {}, []
-    groups_q, groups_rel, groups_pair = {}, {}, {}
+    groups_q, groups_rel, groups_pair, groups_snr = {}, {}, {}, {}
     for scene in scenes:
         moving = scene.target_moving
         err = scene_errors(preds[scene.scene_id], scene.azimuth[0].astype(np.float64), scene.active[0], moving)
@@ -236,6 +239,8 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
         if scene.query_relation:
             groups_rel.setdefault(f"{scene.query_type}:{scene.query_relation}", []).append(err)
         groups_pair.setdefault(scene.pairing, []).append(err)
+        if scene.record.noise:
+            groups_snr.setdefault(snr_group(scene.record.noise), []).append(err)
         per_scene.append({"scene_id": scene.scene_id, "scenario": scenario, "motion": motion,
                           "query_type": scene.query_type, "query_relation": scene.query_relation,
                           "pairing": scene.pairing, "unit": "frame" if moving else "clip", "units": int(err.size),
@@ -251,7 +256,26 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
         by_query={k: summarise(v) for k, v in sorted(groups_q.items())},
         by_relation={k: summarise(v) for k, v in sorted(groups_rel.items())},
         by_pairing={k: summarise(v) for k, v in sorted(groups_pair.items())},
+        by_snr={k: summarise(groups_snr[k]) for k in SNR_GROUPS if k in groups_snr},
     )
+
+
+SNR_GROUPS = ("<10dB", "10-20dB", "20-30dB", ">=30dB", "dbfs-only")
+
+
+def scene_snr(noise) -> float | None:
+    """A scene's SNR against all its noise (dB): its noises' SNRs combined in power (noises
+    independent of each other); None when no noise has an SNR (sensor noise in dBFS)."""
+    snrs = [n.snr_db for n in noise if n.snr_db is not None]
+    return None if not snrs else float(-10 * np.log10(np.sum(10 ** (-np.asarray(snrs) / 10))))
+
+
+def snr_group(noise) -> str:
+    """The group of :data:`SNR_GROUPS` a scene with ``noise`` (its records) is scored in."""
+    snr = scene_snr(noise)
+    if snr is None:
+        return "dbfs-only"
+    return SNR_GROUPS[0] if snr < 10 else SNR_GROUPS[1] if snr < 20 else SNR_GROUPS[2] if snr < 30 else SNR_GROUPS[3]
 
 
 def write_predictions(path: str, rows) -> None:

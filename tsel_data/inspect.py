@@ -26,9 +26,10 @@ from .store.reader import Scene, list_splits, open_dataset
 SOURCE_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
 
 
-def find_scene(root: str, ref: str, split: str | None = None) -> Scene:
+def find_scene(root: str, ref: str, split: str | None = None, receiver: str | None = None) -> Scene:
     """A scene by id (``test-000012``) or by ``split/index`` (``test/12``; negative counts
-    from the end). A dataset still being made is searched in its finished shards."""
+    from the end). A dataset still being made is searched in its finished shards.
+    receiver: whose audio the scene carries, for datasets heard by several."""
     splits = list_splits(root, unfinished=True)
     if "/" in ref:
         sp, _, idx = ref.partition("/")
@@ -36,7 +37,7 @@ def find_scene(root: str, ref: str, split: str | None = None) -> Scene:
             i = int(idx)
         except ValueError:
             raise TselError(f"scene {ref!r}: expected SPLIT/INDEX with an integer index, e.g. test/0") from None
-        with open_dataset(root, sp, unfinished=True) as ds:
+        with open_dataset(root, sp, unfinished=True, receiver=receiver) as ds:
             try:
                 return ds[ds.position_of(i) if i >= 0 else i]
             except IndexError:
@@ -47,7 +48,7 @@ def find_scene(root: str, ref: str, split: str | None = None) -> Scene:
     # Scene ids start with their split by convention; look there first, then everywhere.
     order = [split] if split else sorted(splits, key=lambda s: not ref.startswith(s + "-"))
     for sp in order:
-        with open_dataset(root, sp, unfinished=True) as ds:
+        with open_dataset(root, sp, unfinished=True, receiver=receiver) as ds:
             if ref in ds:
                 return ds.by_id(ref)
     where = f"split {split!r}" if split else f"splits {', '.join(splits)}"
@@ -327,10 +328,11 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
 
 
 def inspect_scene(root: str, ref: str, split: str | None = None, png: str | None = None,
-                  wav: str | None = None) -> tuple[Scene, str]:
+                  wav: str | None = None, receiver: str | None = None) -> tuple[Scene, str]:
     """Find a scene, optionally write its picture, its mixture (``wav``) and the
-    mixture's headphone preview (:func:`stereo_path`); returns (scene, summary text)."""
-    scene = find_scene(root, ref, split)
+    mixture's headphone preview (:func:`stereo_path`), as ``receiver`` heard it (default
+    the dataset's first); returns (scene, summary text)."""
+    scene = find_scene(root, ref, split, receiver)
     if png:
         plot_scene(scene, png)
     if wav:

@@ -25,7 +25,7 @@ from .atomic import write_error, write_json, write_lines
 from .catalog import write_bad_clips, write_missing_clips
 from .config import Config, Difference, config_differences
 from .errors import ConfigError, DatasetError, TselError
-from .config.receiver import array_pose
+from .config.receiver import array_poses
 from .plan import plan_roots, plan_split_json, prepare_views
 from .shards import (PlanPart, expected_fingerprint, finalize, load_plan, load_plan_part,  # noqa: F401 (the job's API)
                      plan_config, plan_shard_tasks, render_shard, render_shards)
@@ -171,7 +171,7 @@ def estimate_bytes(cfg: Config) -> int:
     n_scenes = sum(sp.count for sp in cfg.splits.values())
     frames = int(round(a.duration / a.label_hop))
     n_src = int((cfg.scene.interferers.bounds or (1, 1))[1]) + 1
-    per_scene = (array_pose(cfg).n_channels * int(round(a.duration * a.fs)) * 4
+    per_scene = (sum(p.n_channels for p in array_poses(cfg, side=0.1)) * int(round(a.duration * a.fs)) * 4
                  + n_src * frames * LABEL_BYTES_PER_SOURCE_FRAME + OVERHEAD_BYTES_PER_SCENE)
     return n_scenes * per_scene
 

@@ -17,7 +17,7 @@ from .banks.paths import sample_bank_path, sample_bank_point
 from .banks.scenes import open_bank_cached, split_rooms
 from .choices import Motion, PathKind, Spatial
 from .config import Config
-from .config.receiver import array_pose
+from .config.receiver import array_pose, receiver_names
 from .errors import GeometryError
 from .geometry import Room, frame_centres, interpolate_positions, wrap_azimuth
 from .receivers import ArrayPose, receiver
@@ -63,7 +63,8 @@ ROOM_TRIES, CENTRE_TRIES, AZIMUTH_TRIES = 10, 10, 50
 
 
 def place(cfg: Config, rng, spatial: list[str], split: str, index: int):
-    """Room, array pose and each source's placement (Source fields; None for additive).
+    """Room, the receivers' poses (``scene.format`` first, then ``scene.receivers``, all at
+    one place) and each source's placement (Source fields; None for additive).
 
     Each directional source's distance, height, motion, path kind and speed are drawn
     first and kept; what is retried until the sources fit (inside the walls' margins,
@@ -74,6 +75,7 @@ def place(cfg: Config, rng, spatial: list[str], split: str, index: int):
     """
     rc, ac = cfg.room, cfg.array
     sized = receiver(cfg.scene.format).size_key == "side"
+    names = receiver_names(cfg)
     wants = _wants(cfg, rng, spatial)
     for _ in range(ROOM_TRIES):
         dims = (float(rc.length.sample(rng)), float(rc.width.sample(rng)), float(rc.height.sample(rng)))
@@ -89,7 +91,9 @@ def place(cfg: Config, rng, spatial: list[str], split: str, index: int):
             centre = tuple(round(c, 5) for c in centre)
             places = _place_sources(cfg, rng, wants, room, centre, yaw)
             if places is not None:
-                return room, array_pose(cfg, centre, yaw, side), places
+                if len(names) > 1 and side is None and any(receiver(n).size_key == "side" for n in names[1:]):
+                    side = round(float(ac.side.sample(rng)), 5)  # drawn last: the rest is as without them
+                return room, [array_pose(cfg, centre, yaw, side, fmt=n) for n in names], places
     shown = "; ".join(f"source {k}: {w.describe(cfg.audio.duration)}" for k, w in enumerate(wants) if w is not None)
     if sum(w is not None for w in wants) > 1:
         apart = f", {cfg.scene.min_separation}° apart (scene.min_separation),"
@@ -241,7 +245,7 @@ def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want
 
 def place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, bank_path: str):
     """A bank room for the split, the bank's array, and each source's walk or point:
-    (None, ArrayPose, [{"bank": BankWalk} or None per source], BankRef)."""
+    (None, [ArrayPose per receiver], [{"bank": BankWalk} or None per source], BankRef)."""
     spec = receiver(cfg.scene.format)
     bank = open_bank_cached(bank_path, spec.bank_format)
     rooms = split_rooms(bank, cfg.rooms_by_split(), split)
@@ -249,7 +253,8 @@ def place_bank(cfg: Config, rng, spatial: list[str], split: str, index: int, ban
     info = bank.room_info(room_name)
     side = (info.get("array") or {}).get("side") if spec.size_key == "side" else None
     # the bank's RIRs hold the real capsules (baffle and all); a mixed receiver mixes them (render)
-    array = ArrayPose(spec.name, (0.0, 0.0, 0.0), 0.0, side)
+    array = [ArrayPose(receiver(n).name, (0.0, 0.0, 0.0), 0.0, side if receiver(n).size_key == "side" else None)
+             for n in receiver_names(cfg)]
     fc = _frame_centres(cfg)
     placed: list[np.ndarray] = []
     out = []

@@ -11,19 +11,21 @@ from __future__ import annotations
 
 import os
 import zlib
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from .banks.scenes import BUILTIN_DEMO_BANK, BankRequest, resolve_bank
+from .banks.scenes import BUILTIN_DEMO_BANK, BankRequest, open_bank_cached, resolve_bank, split_rooms
 from .captions import CaptionIndex, load_embeddings, max_similarity, tokens
 from .catalog import BUILTIN_DEMO, MIN_CLIPS, CatalogScan, build_catalog, resolve_corpus_dir
-from .choices import Pairing, QueryType, Relation, Role, Scenario, SimilarityMeasure, Spatial
+from .ambience import find_ambience
+from .choices import (LevelModel, NoiseSpectrum, Pairing, QueryType, Relation, Role, Scenario, SensorLevel,
+                      SimilarityMeasure, Spatial)
 from .clip import Clip
 from .config import Config, rooms_without_bank
-from .config.receiver import hrtf_problem
+from .config.receiver import array_pose, hrtf_problem
 from .errors import TselError
-from .recipe import BankRef, QueryPlan, Roots, SceneRecipe, Source
+from .executors import ordered_pool
+from .recipe import BankRef, NoiseItem, QueryPlan, Roots, SceneRecipe, Source
 from .placement import MAX_TRIES, place, place_bank
 from .receivers import receiver
 from .store.layout import Layout
@@ -34,7 +36,8 @@ class CatalogView:
     """A split's clips with their caption tokens precomputed (shared by every scene), and
     the resolved path of the RIR bank when scenes use one."""
 
-    def __init__(self, clips: list[Clip], bank_path: str | None = None, roots: Roots | None = None):
+    def __init__(self, clips: list[Clip], bank_path: str | None = None, roots: Roots | None = None,
+                 ambience=None):
         if len(clips) < MIN_CLIPS:
             raise TselError(f"a split needs at least {MIN_CLIPS} usable clips to make scenes, it has {len(clips)}")
         self.clips = clips
@@ -44,6 +47,7 @@ class CatalogView:
         self.bank_path = bank_path
         # recipes name their files relative to these (absolute paths without them)
         self.roots = roots or Roots()
+        self.ambience = ambience  # the AmbienceSet of noise.ambience, or None
         self._indexes: dict = {}
 
     def caption_index(self, measure: str, embeddings: str = "") -> CaptionIndex:
@@ -82,7 +86,8 @@ def prepare_views(cfg: Config, home: Layout, workers: int = 1,
     catalog = build_catalog(cfg, corpus_dir, workers=workers, progress=progress)
     bank_path = resolve_bank(bank_request(cfg), home.demo_bank)
     roots = plan_roots(cfg, home)
-    views = {split: CatalogView(clips, bank_path, roots) for split, clips in catalog.clips.items()}
+    ambience = find_config_ambience(cfg)
+    views = {split: CatalogView(clips, bank_path, roots, ambience) for split, clips in catalog.clips.items()}
     if extended_queries(cfg):
         for split in cfg.active_splits():
             if split in views:
@@ -95,10 +100,39 @@ def plan_roots(cfg: Config, home: Layout) -> Roots:
     RIR bank (the built-in ones in ``home``, the dataset folder) and a binaural receiver's HRTF."""
     corpus = home.demo_corpus if cfg.corpus.dir == BUILTIN_DEMO else cfg.corpus.dir
     bank = home.demo_bank if cfg.room.bank == BUILTIN_DEMO_BANK else cfg.room.bank
-    hrtf = cfg.array.hrtf
+    hrtf, ambience = cfg.array.hrtf, cfg.noise.ambience
     return Roots(os.path.abspath(os.path.expanduser(corpus)) if corpus else "",
                  os.path.abspath(os.path.expanduser(bank)) if bank else "",
-                 os.path.abspath(os.path.expanduser(hrtf)) if hrtf else "")
+                 os.path.abspath(os.path.expanduser(hrtf)) if hrtf else "",
+                 os.path.abspath(os.path.expanduser(ambience)) if ambience else "")
+
+
+def ambience_problems(cfg: Config) -> list[TselError]:
+    """What keeps ``noise.ambience`` from serving the config: the folder, its recordings'
+    channels, rate and length (tsel_data.ambience), and with a bank, a recording for every
+    bank room the active splits use."""
+    try:
+        amb = find_config_ambience(cfg)
+        if amb is None or not cfg.room.bank or cfg.room.bank == BUILTIN_DEMO_BANK:
+            return []
+        path = os.path.abspath(os.path.expanduser(cfg.room.bank))
+        bank = open_bank_cached(path, receiver(cfg.scene.format).bank_format if os.path.isdir(path) else None)
+        for split in cfg.active_splits():
+            for room in split_rooms(bank, cfg.rooms_by_split(), split):
+                amb.for_room(room, np.random.default_rng(0))
+    except TselError as e:
+        return [e]
+    return []
+
+
+def find_config_ambience(cfg: Config):
+    """The ambience recordings ``noise.ambience`` names (tsel_data.ambience), checked against
+    the receiver's channels and the scenes' rate, or None without ambience."""
+    if not cfg.noise.ambience:
+        return None
+    pose = array_pose(cfg)
+    return find_ambience(os.path.abspath(os.path.expanduser(cfg.noise.ambience)), pose.n_channels, cfg.audio.fs,
+                         pose.format, scene_samples=int(round(cfg.audio.duration * cfg.audio.fs)))
 
 
 def bank_request(cfg: Config) -> BankRequest:
@@ -194,24 +228,75 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     else:
         (room, array, places), bank = place(cfg, rng, spatial, split, index), None
     starts = _starts(cfg, split, index, len(chosen))
+    powers = _powers(cfg, split, index, spatial)
     sources = []
     for k, ci in enumerate(chosen):
         clip = cat.clips[ci]
+        kept_tir = tir[k] if powers[k] is None else None  # a source with a power has no TIR: distance sets it
         sources.append(Source(
             role=Role.TARGET if k == 0 else Role.INTERFERER, clip_id=clip.id, audio=cat.roots.relative_clip(clip.audio),
             captions=clip.captions, spatial=spatial[k], offset=clip.offset,
-            tir_db=None if tir[k] is None else round(tir[k], 4), start=starts[k], **(places[k] or {}),
+            tir_db=None if kept_tir is None else round(kept_tir, 4), start=starts[k], power_db=powers[k],
+            **(places[k] or {}),
         ))
     a = cfg.audio
     recipe = SceneRecipe(
         scene_id=f"{split}-{index:06d}", split=split, index=index, seed=int(rng.integers(2**31 - 1)),
-        scenario=scenario, query=query, array=array, sources=tuple(sources), room=room,
+        scenario=scenario, query=query, array=array[0], receivers=tuple(array[1:]), sources=tuple(sources), room=room,
         fs=a.fs, duration=a.duration, label_hop=a.label_hop,
         rir_method="bank" if cat.bank_path else cfg.room.rir_method,
         target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db, bank=bank,
         query_plan=None if pairs is None else pairs.plan(chosen),
+        noise=_noise_items(cfg, split, index, cat, chosen, bank.room if bank else None),
     )
     return recipe.validate(wall_margin=cfg.sources.wall_margin - 1e-6)
+
+
+def _powers(cfg: Config, split: str, index: int, spatial: list) -> list:
+    """Each source's level at 1 m (dB) when levels follow distance (``scene.levels``), from
+    the scene's stream 4; None for positionless sources and under the TIR model."""
+    if cfg.scene.levels != LevelModel.DISTANCE:
+        return [None] * len(spatial)
+    rng = scene_rng(cfg.seed, split, index, 4)
+    return [round(float(cfg.sources.power.sample(rng)), 3) if sp == Spatial.DIRECTIONAL else None for sp in spatial]
+
+
+def _noise_items(cfg: Config, split: str, index: int, cat: CatalogView, chosen: list, bank_room) -> tuple:
+    """The scene's noises (``[noise]``), drawn from its stream 3: the ambience recording of
+    its room and where in it, the diffuse field's spectrum, the babble's clips and
+    directions, the sensor noise's level; each with an SNR and a seed of its own."""
+    nc = cfg.noise
+    rng = scene_rng(cfg.seed, split, index, 3)
+    n = int(round(cfg.audio.duration * cfg.audio.fs))
+    items = []
+    if nc.ambience:
+        rec = cat.ambience.for_room(bank_room, rng)
+        offset = rec.offset(rng, n, nc.ambience_segments, index)
+        rel = os.path.relpath(rec.path, cat.ambience.root).replace(os.sep, "/")
+        items.append(NoiseItem("ambience", int(rng.integers(2**31 - 1)), round(float(nc.ambience_snr.sample(rng)), 3),
+                               file=rel, offset=offset))
+    if nc.diffuse != NoiseSpectrum.NONE:
+        clips = ()
+        if nc.diffuse == NoiseSpectrum.CLIP:
+            c = cat.clips[int(rng.integers(len(cat.clips)))]
+            clips = ((cat.roots.relative_clip(c.audio), c.offset),)
+        items.append(NoiseItem("diffuse", int(rng.integers(2**31 - 1)), round(float(nc.diffuse_snr.sample(rng)), 3),
+                               spectrum=str(nc.diffuse), clips=clips))
+    if nc.babble:
+        pool = np.setdiff1d(np.arange(len(cat.clips)), chosen)
+        picked = rng.choice(pool, size=min(nc.babble, len(pool)), replace=False)
+        clips = tuple((cat.roots.relative_clip(cat.clips[i].audio), cat.clips[i].offset) for i in picked)
+        az = rng.uniform(-180.0, 180.0, len(picked))
+        el = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, len(picked))))  # uniform over the sphere
+        dirs = tuple((round(float(a), 3), round(float(e), 3)) for a, e in zip(az, el))
+        items.append(NoiseItem("babble", int(rng.integers(2**31 - 1)), round(float(nc.babble_snr.sample(rng)), 3),
+                               clips=clips, directions=dirs))
+    if nc.sensor != SensorLevel.NONE:
+        level = round(float(nc.sensor_level.sample(rng)), 3)
+        seed = int(rng.integers(2**31 - 1))
+        items.append(NoiseItem("sensor", seed, level, None) if nc.sensor == SensorLevel.SNR
+                     else NoiseItem("sensor", seed, None, level))
+    return tuple(items)
 
 
 # Same-kind distractors get |TIR| >= margin_level + this, so the loudness relation holds
@@ -371,5 +456,5 @@ def plan_split_json(cfg: Config, split: str, cat: CatalogView, workers: int = 1,
     if workers <= 1 or len(bounds) <= 1:
         _init_planner(cfg, split, cat)
         return [line for b in bounds for line in _plan_chunk(b)]
-    with ProcessPoolExecutor(workers, initializer=_init_planner, initargs=(cfg, split, cat)) as ex:
+    with ordered_pool(workers, _init_planner, (cfg, split, cat)) as ex:
         return [line for lines in ex.map(_plan_chunk, bounds) for line in lines]

@@ -20,10 +20,10 @@ import tempfile
 from .banks.scenes import bank_problems, resolve_bank
 from .catalog import BUILTIN_DEMO, resolve_corpus_dir, scan_catalog
 from .config import Config, config_problems, geometry_problems, rooms_without_bank
-from .config.receiver import hrtf_problem
+from .config.receiver import array_poses, hrtf_problem
 from .errors import DatasetError, TselError
 from .pipeline import check_ownership, estimate_bytes, plan_differences, planned_with
-from .plan import CatalogView, bank_request, extended_queries, plan_split_json
+from .plan import CatalogView, ambience_problems, bank_request, extended_queries, plan_split_json
 from .report import CheckReport
 from .store.layout import Layout
 
@@ -54,10 +54,13 @@ def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan
         return rep  # later checks assume sane fields
     for e in geometry_problems(cfg):
         rep.error(e)
+    rep.facts["receivers"] = [{"name": p.format, "channels": p.n_channels} for p in array_poses(cfg, side=0.1)]
     for problem in (rooms_without_bank(cfg), hrtf_problem(cfg)):
         if problem:
             rep.error(problem)
     for e in bank_problems(bank_request(cfg)):
+        rep.error(e)
+    for e in ambience_problems(cfg):
         rep.error(e)
     if out_dir:
         _check_out_dir(cfg, out_dir, rep)

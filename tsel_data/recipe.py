@@ -82,7 +82,8 @@ class Source:
     bank: for bank-rendered sources, where in the bank (:class:`BankWalk`).
     tir_db: target-to-interferer ratio at the array for interferers (dB), None for the
     target. offset: seconds into the audio file where the clip starts. start: seconds
-    into the scene where the clip starts (silence before it; ``scene.onset``).
+    into the scene where the clip starts (silence before it; ``scene.onset``). power_db:
+    with ``scene.levels = "distance"``, its level at 1 m (dB, relative; None otherwise).
     """
 
     role: str
@@ -96,6 +97,7 @@ class Source:
     bank: BankWalk | None = None
     tir_db: float | None = None
     start: float = 0.0
+    power_db: float | None = None
 
     @property
     def moving(self) -> bool:
@@ -111,6 +113,8 @@ class Source:
         }
         if self.start:  # absent when 0: recipes without scene.onset keep their bytes
             d["start"] = self.start
+        if self.power_db is not None:  # levels that follow distance only
+            d["power_db"] = self.power_db
         return d
 
     @classmethod
@@ -140,6 +144,47 @@ class Source:
             knots = np.asarray(self.path, dtype=np.float64)
             return np.stack([np.interp(t, knots[:, 0], knots[:, k]) for k in (1, 2, 3)], axis=-1)
         return np.broadcast_to(np.asarray(self.position, dtype=np.float64), t.shape + (3,)).copy()
+
+
+@dataclass(frozen=True)
+class NoiseItem:
+    """One part of what a scene hears besides its sources (``[noise]``; never labelled).
+
+    kind: ``ambience`` (a recording: ``file`` named relative to ``noise.ambience``, from
+    ``offset`` samples), ``diffuse`` (simulated, ``spectrum`` white / pink / brown, or the
+    long-term spectrum of the clip ``clips[0]``), ``babble`` (``clips``, each (audio path
+    relative to the corpus, offset s), a plane wave from ``directions[k]`` (azimuth °,
+    elevation °, array frame)) or ``sensor`` (independent per channel). snr_db: against
+    the target's omni energy (None for ``sensor`` at ``level_dbfs``). seed: its random
+    draws at render time.
+    """
+
+    kind: str
+    seed: int
+    snr_db: float | None = None
+    level_dbfs: float | None = None
+    spectrum: str | None = None
+    file: str | None = None
+    offset: int | None = None
+    clips: tuple = ()
+    directions: tuple = ()
+
+    def to_dict(self) -> dict:
+        d = {"kind": self.kind, "seed": self.seed}
+        for key in ("snr_db", "level_dbfs", "spectrum", "file", "offset"):
+            if getattr(self, key) is not None:
+                d[key] = getattr(self, key)
+        if self.clips:
+            d["clips"] = [list(c) for c in self.clips]
+        if self.directions:
+            d["directions"] = [list(c) for c in self.directions]
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "NoiseItem":
+        return cls(d["kind"], int(d["seed"]), d.get("snr_db"), d.get("level_dbfs"), d.get("spectrum"), d.get("file"),
+                   d.get("offset"), tuple(tuple(c) for c in d.get("clips") or ()),
+                   tuple(tuple(c) for c in d.get("directions") or ()))
 
 
 @dataclass(frozen=True)
@@ -197,7 +242,9 @@ class SceneRecipe:
     room: the simulated shoebox (None for bank scenes). bank: the bank and room of a
     bank scene (None for simulated scenes). query: the target's caption drawn as the
     query; with a ``query_plan`` the renderer decides the scene's query from it and the
-    rendered truth (a relation, or this caption).
+    rendered truth (a relation, or this caption). receivers: further receivers heard in
+    the same pass, at the array's centre and yaw (``scene.receivers``). noise: what else
+    it hears, unlabelled (:class:`NoiseItem`, ``[noise]``).
     """
 
     scene_id: str
@@ -217,6 +264,8 @@ class SceneRecipe:
     activity_threshold_db: float = -30.0
     bank: BankRef | None = None
     query_plan: QueryPlan | None = None
+    receivers: tuple[ArrayPose, ...] = ()
+    noise: tuple[NoiseItem, ...] = ()
 
     @property
     def target(self) -> Source:
@@ -250,6 +299,10 @@ class SceneRecipe:
         }
         if self.query_plan is not None:  # absent in recipes of default query settings: their bytes stay
             d["query_plan"] = self.query_plan.to_dict()
+        if self.receivers:  # further receivers at the array's place (scene.receivers)
+            d["receivers"] = [a.to_dict() for a in self.receivers]
+        if self.noise:
+            d["noise"] = [n.to_dict() for n in self.noise]
         return d
 
     def to_json(self) -> str:
@@ -265,6 +318,8 @@ class SceneRecipe:
         d["bank"] = BankRef(extra["bank"], extra["bank_room"]) if extra.get("bank") else None
         qp = d.pop("query_plan", None)
         d["query_plan"] = None if qp is None else QueryPlan.from_dict(qp)
+        d["receivers"] = tuple(ArrayPose.from_dict(a) for a in d.get("receivers") or ())
+        d["noise"] = tuple(NoiseItem.from_dict(n) for n in d.get("noise") or ())
         return cls(**d)
 
     @classmethod
@@ -284,7 +339,8 @@ class SceneRecipe:
             raise GeometryError(f"{self.scene_id}: only source 0 may be the target")
         if self.room is not None:
             dims = self.room.dims
-            _inside(self.array.room_mic_points(), dims, 0.0, f"{self.scene_id}: array")
+            for a in (self.array, *self.receivers):
+                _inside(a.room_mic_points(), dims, 0.0, f"{self.scene_id}: array {a.format}")
             for i, s in enumerate(self.sources):
                 pts = s.room_points()
                 if s.spatial == Spatial.DIRECTIONAL and s.bank is None and pts is None:
@@ -305,6 +361,7 @@ class Roots:
     corpus: str = ""
     bank: str = ""
     hrtf: str = ""
+    ambience: str = ""
 
     def relative_clip(self, path: str) -> str:
         """A clip's path as a plan stores it: relative to the corpus, with ``/``."""
@@ -324,22 +381,28 @@ class Roots:
     def hrtf_file(self, rel: str) -> str:
         return self.hrtf or rel
 
+    def ambience_file(self, rel: str) -> str:
+        """An ambience recording, named relative to the ambience folder."""
+        return os.path.normpath(os.path.join(self.ambience, rel)) if self.ambience else rel
+
     def resolve(self, recipe: "SceneRecipe") -> "SceneRecipe":
         """The recipe with the files it names as paths on this machine."""
-        if not self.corpus and not self.bank and not self.hrtf:
+        if not self.corpus and not self.bank and not self.hrtf and not self.ambience:
             return recipe
         sources = tuple(replace(s, audio=self.clip(s.audio)) for s in recipe.sources)
         bank = None if recipe.bank is None else replace(recipe.bank, path=self.bank_file(recipe.bank.path))
-        array = recipe.array if not recipe.array.hrtf else replace(recipe.array,
-                                                                   hrtf=self.hrtf_file(recipe.array.hrtf))
-        return replace(recipe, sources=sources, bank=bank, array=array)
+        here = [a if not a.hrtf else replace(a, hrtf=self.hrtf_file(a.hrtf)) for a in (recipe.array, *recipe.receivers)]
+        noise = tuple(replace(n, file=None if n.file is None else self.ambience_file(n.file),
+                              clips=tuple((self.clip(c[0]), *c[1:]) for c in n.clips)) for n in recipe.noise)
+        return replace(recipe, sources=sources, bank=bank, array=here[0], receivers=tuple(here[1:]), noise=noise)
 
     def inputs(self, recipes) -> list[tuple[str, str]]:
         """[(name as the plan says it, path here)] of every file ``recipes`` read, sorted."""
-        names = {s.audio for r in recipes for s in r.sources}
+        names = {s.audio for r in recipes for s in r.sources} | {c[0] for r in recipes for n in r.noise for c in n.clips}
         out = {(n, self.clip(n)) for n in names}
+        out |= {(n.file, self.ambience_file(n.file)) for r in recipes for n in r.noise if n.file}
         out |= {(r.bank.path, self.bank_file(r.bank.path)) for r in recipes if r.bank}
-        out |= {(r.array.hrtf, self.hrtf_file(r.array.hrtf)) for r in recipes if r.array.hrtf}
+        out |= {(a.hrtf, self.hrtf_file(a.hrtf)) for r in recipes for a in (r.array, *r.receivers) if a.hrtf}
         return sorted(out)
 
 

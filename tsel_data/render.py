@@ -20,15 +20,18 @@ import numpy as np
 
 from .acoustics import simulate_rirs
 from .acoustics.capsules import capsule_model
+from .acoustics.diffuse import diffuse_image
+from .ambience import omni_energy
 from .audio import active_rms, db, frame_activity, load_clip_cached
+from .noise import noise_image, noise_gain, noise_level_dbfs
 from .banks.scenes import open_bank_cached
 from .choices import Spatial
 from .errors import AudioError, BankError
 from .geometry import cart_to_sph, frame_centres
 from .queries import Truth, decide
 from .recipe import BankRef, Roots, SceneRecipe, array_frame_position_at
-from .store.records import (LABEL_DECIMALS, ArrayRecord, LevelsRecord, RoomRecord, SceneRecord, SourceRecord,
-                            label_list)
+from .store.records import (LABEL_DECIMALS, ArrayRecord, LevelsRecord, NoiseRecord, RoomRecord, SceneRecord,
+                            SourceRecord, label_list)
 from .store.writer import RenderedScene
 from .timevarying import render_moving, render_static
 
@@ -71,33 +74,35 @@ def source_labels(recipe: SceneRecipe, k: int) -> tuple[np.ndarray, np.ndarray, 
     return az.astype(np.float32), el.astype(np.float32), dist.astype(np.float32)
 
 
-def spatial_images(recipe: SceneRecipe, dry: np.ndarray) -> tuple[np.ndarray, float | None]:
+def spatial_images(recipe: SceneRecipe, dry: np.ndarray, array=None) -> tuple[np.ndarray, float | None]:
     """Each source's image at the array, unscaled: float32 [S, C, T]; and the measured RT60.
+    ``array``: one of the recipe's receivers (default the first, ``recipe.array``).
 
     Static simulated sources share one batched RIR computation and convolution; moving
     and bank sources go through the time-varying renderer (timevarying.py); additive
     sources are the dry clip on every omni channel (FOA: on W only, since equal gains on
-    Y, Z, X would be a direction); diffuse ones are the clip as a diffuse field
-    (the receiver's capsule model, acoustics/capsules.py), drawn from the scene's seed.
+    Y, Z, X would be a direction); diffuse ones are the clip as a diffuse field with the
+    receiver's diffuse-field cross-spectra (acoustics/diffuse.py), drawn from the scene's seed.
     """
-    fs, n, array = recipe.fs, recipe.n_samples, recipe.array
+    fs, n = recipe.fs, recipe.n_samples
+    array = recipe.array if array is None else array
     images = np.zeros((len(recipe.sources), array.n_channels, n), dtype=np.float32)
     rt60 = None
     static = [k for k, s in enumerate(recipe.sources)
               if s.spatial == Spatial.DIRECTIONAL and s.bank is None and not s.path]
     if static:
         pts = np.array([recipe.sources[k].position for k in static], dtype=np.float64)
-        rs = simulate_rirs(recipe.room, recipe.array, pts, fs, method=recipe.rir_method, seed=recipe.seed)
+        rs = simulate_rirs(recipe.room, array, pts, fs, method=recipe.rir_method, seed=recipe.seed)
         rt60 = rs.rt60_measured
         images[static] = convolve(dry[static], rs.rirs, n)
     for k, s in enumerate(recipe.sources):
         if s.spatial == Spatial.ADDITIVE:
             _additive(images[k], dry[k], array.spec.additive_gains(array.n_channels))
         elif s.spatial == Spatial.DIFFUSE:
-            g = capsule_model(array, fs).diffuse_filters(np.random.default_rng([recipe.seed, k]), array)
-            images[k] = render_static(dry[k], g)[:, :n]
+            images[k] = diffuse_image(dry[k], fs, capsule_model(array, fs).diffuse_csd,
+                                      np.random.default_rng([recipe.seed, k]))
         elif s.path:
-            images[k], measured = path_image(recipe.room, recipe.array, s.path, dry[k], fs, recipe.rir_method,
+            images[k], measured = path_image(recipe.room, array, s.path, dry[k], fs, recipe.rir_method,
                                              recipe.seed + 1 + k)
             rt60 = measured if rt60 is None else rt60
         elif s.bank is not None:
@@ -140,10 +145,12 @@ class MixParts:
     """What a scene's mixture is made of (:func:`mix_parts`).
 
     active: bool [S, F]. images: float32 [S, C, T], each source's image at the array,
-    unscaled. gains: [S], each image's gain before ``norm``, the gain applied to the
+    unscaled. noise: each of the recipe's noises as mixed (:class:`MixedNoise`). gains: [S], each image's gain before ``norm``, the gain applied to the
     whole mix against clipping. levels: [S] active-frame RMS of the unscaled images.
     peak: the mix's peak before ``norm``. mix: float32 [C, T], the scene's audio.
-    rt60_measured: s, or None.
+    rt60_measured: s, or None. others: the recipe's further receivers (``recipe.receivers``),
+    each (images, mix) with the same gains and ``norm`` (levels are set on the first
+    receiver; ``norm`` keeps every receiver's mix below full scale).
     """
 
     active: np.ndarray
@@ -154,11 +161,32 @@ class MixParts:
     peak: float
     mix: np.ndarray
     rt60_measured: float | None
+    others: tuple = ()
+    noise: tuple = ()
 
-    def stems(self) -> np.ndarray:
-        """float32 [S, C, T]: each source alone as it sounds in the mix (they add up to
-        ``mix`` within float32 rounding)."""
-        return self.images * (self.gains * self.norm).astype(np.float32)[:, None, None]
+    def stems(self, receiver: int = 0) -> np.ndarray:
+        """float32 [S, C, T]: each source alone as it sounds in the mix of receiver
+        ``receiver`` (0: the first; with :meth:`noise_stem` they add up to its mix within
+        float32 rounding)."""
+        images = self.images if receiver == 0 else self.others[receiver - 1][0]
+        return images * (self.gains * self.norm).astype(np.float32)[:, None, None]
+
+    def noise_stem(self, receiver: int = 0) -> np.ndarray | None:
+        """float32 [C, T]: everything but the sources (``[noise]``) as it sounds in the mix, or None."""
+        if not self.noise:
+            return None
+        return sum(n.images[receiver] for n in self.noise) * np.float32(self.norm)
+
+
+@dataclass(frozen=True)
+class MixedNoise:
+    """One noise of a scene as mixed: its item, its gain, each receiver's scaled image
+    [C, T] before ``norm`` (the first receiver's first), and its SNR as measured."""
+
+    item: object
+    gain: float
+    images: tuple
+    snr_db: float | None
 
 
 def mix_parts(recipe: SceneRecipe) -> MixParts:
@@ -173,8 +201,6 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
 
     level_ch = recipe.array.spec.level_slice()  # the "omni energy": W for FOA, every capsule of an array
     levels = np.array([active_rms(images[k, level_ch], active[k], fs, hop) for k in range(len(images))])
-    target_rms = 10 ** (recipe.target_level_dbfs / 20)
-    gains = np.zeros(len(images))
     for k, s in enumerate(recipe.sources):
         if not np.isfinite(levels[k]) or (levels[k] <= 0 and np.max(np.abs(dry[k])) > 0):
             _blame_rirs(recipe, k)
@@ -183,13 +209,63 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
             raise AudioError(f"{recipe.scene_id}: source {k} ({s.clip_id}, {s.audio}) is silent in the "
                              f"{recipe.duration:g} s the scene uses; set corpus.check = \"full\" so such clips "
                              f"are found before planning, or remove it from the manifest")
-        want = target_rms if k == 0 else target_rms * 10 ** (-s.tir_db / 20)
-        gains[k] = want / levels[k]
+    gains = source_gains(recipe, dry, active, levels)
     mix = np.tensordot(gains.astype(np.float32), images, axes=1)
+    others = []
+    for pose in recipe.receivers:  # heard where the first one is, at the same gains
+        imgs, _ = spatial_images(recipe, dry, pose)
+        others.append((imgs, np.tensordot(gains.astype(np.float32), imgs, axes=1)))
+    noise = tuple(_mixed_noise(recipe, item, images[0] * np.float32(gains[0]), level_ch) for item in recipe.noise)
+    for nz in noise:
+        mix += nz.images[0]
+        for (_, m), img in zip(others, nz.images[1:]):
+            m += img
     peak = float(np.max(np.abs(mix))) if mix.size else 0.0
-    norm = PEAK_LIMIT / peak if peak > PEAK_LIMIT else 1.0
+    top = max([peak] + [float(np.max(np.abs(m))) for _, m in others if m.size])
+    norm = PEAK_LIMIT / top if top > PEAK_LIMIT else 1.0
     mix *= np.float32(norm)
-    return MixParts(active, images, gains, norm, levels, peak, mix, rt60_measured)
+    for _, m in others:
+        m *= np.float32(norm)
+    return MixParts(active, images, gains, norm, levels, peak, mix, rt60_measured, tuple(others), noise)
+
+
+def source_gains(recipe: SceneRecipe, dry: np.ndarray, active: np.ndarray, levels: np.ndarray) -> np.ndarray:
+    """Each source's gain on its unscaled image [S] (before the clipping guard).
+
+    ``tir`` (sources without ``power_db``): the target's image at ``target_level_dbfs``,
+    each interferer's ``tir_db`` below it. ``distance`` (sources with ``power_db``): the
+    dry clip at unit active level times 10^(power_db / 20) is the source's sound at 1 m
+    (the image's direct path falls as 1 / r), so its level at the array follows from its
+    distance and the room; one gain for all then puts the target at ``target_level_dbfs``.
+    Positionless (additive) sources keep their TIR."""
+    fs, hop = recipe.fs, recipe.label_hop
+    target_rms = 10 ** (recipe.target_level_dbfs / 20)
+    gains = np.zeros(len(levels))
+    if recipe.sources[0].power_db is None:
+        for k, s in enumerate(recipe.sources):
+            gains[k] = (target_rms if k == 0 else target_rms * 10 ** (-s.tir_db / 20)) / levels[k]
+        return gains
+    clip = np.array([active_rms(x[None], a, fs, hop) for x, a in zip(dry, active)])
+    emitted = np.array([10 ** (s.power_db / 20) / clip[k] if s.power_db is not None else np.nan
+                        for k, s in enumerate(recipe.sources)])
+    scale = target_rms / (levels[0] * emitted[0])
+    for k, s in enumerate(recipe.sources):
+        gains[k] = scale * emitted[k] if s.power_db is not None else target_rms * 10 ** (-s.tir_db / 20) / levels[k]
+    return gains
+
+
+def _mixed_noise(recipe: SceneRecipe, item, target: np.ndarray, level_ch) -> "MixedNoise":
+    """A noise of the recipe at its level against the target's image ``target`` (the
+    first receiver's, in the mix), heard by every receiver at that one gain."""
+    poses = (recipe.array, *recipe.receivers)
+    raw = [noise_image(item, p, recipe.fs, recipe.n_samples, recipe.duration, recipe.label_hop,
+                       recipe.activity_threshold_db) for p in poses]
+    g = noise_gain(item, target, raw[0], level_ch)
+    scaled = tuple(r * np.float32(g) for r in raw)
+    snr = None
+    if item.snr_db is not None and g > 0:
+        snr = 10 * np.log10(omni_energy(target, level_ch) / omni_energy(scaled[0], level_ch))
+    return MixedNoise(item, g, scaled, snr)
 
 
 def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> RenderedScene:
@@ -257,13 +333,27 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> RenderedSce
                 elevation=label_list(el[k], LABEL_DECIMALS["elevation"]),
                 distance=label_list(dist[k], LABEL_DECIMALS["distance"]),
                 active=active[k].tolist(), tir_db=s.tir_db, gain_db=round(db(gains[k] * norm), 3),
-                level_dbfs=round(db(levels[k] * gains[k] * norm), 3),
+                level_dbfs=round(db(levels[k] * gains[k] * norm), 3), power_db=s.power_db,
                 **({} if qp is None else {"pairing": qp.pairings[k] or "target", "caption_similarity": qp.similarity[k]}))
             for k, s in enumerate(recipe.sources)),
         levels=LevelsRecord(recipe.target_level_dbfs, round(peak * norm, 6), round(db(norm), 3)),
+        receivers=tuple(ArrayRecord.of(p, centre, yaw, np.round(p.mics(), 6).tolist()) for p in recipe.receivers),
+        noise=tuple(_noise_record(recipe_item, nz, norm, recipe.array.spec.level_slice())
+                    for recipe_item, nz in zip(recipe.noise, parts.noise)),
         **extra,
     )
-    return RenderedScene(recipe.scene_id, query, mix, az, el, dist, active, mics, record, qinfo)
+    others = {p.format: (m, p.mics().astype(np.float32)) for p, (_, m) in zip(recipe.receivers, parts.others)}
+    noise = {n.kind: (n.snr_db, n.level_dbfs) for n in record.noise}
+    return RenderedScene(recipe.scene_id, query, mix, az, el, dist, active, mics, record, qinfo, others, noise)
+
+
+def _noise_record(item, nz, norm: float, level_ch) -> NoiseRecord:
+    """What the record says of one noise: as planned (``item``, names as the plan gives
+    them) and as mixed (``nz``: its SNR measured, its level after the clipping guard)."""
+    return NoiseRecord(item.kind, None if nz.snr_db is None else round(float(nz.snr_db), 3),
+                       round(noise_level_dbfs(nz.images[0] * np.float32(norm), level_ch), 3), item.file,
+                       item.offset, item.spectrum, [list(c) for c in item.clips] or None,
+                       [list(d) for d in item.directions] or None)
 
 
 def _started(x: np.ndarray, start: float, fs: int) -> np.ndarray:

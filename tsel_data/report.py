@@ -55,6 +55,8 @@ class CheckReport:
         """Human summary (what was checked, counts); problems are in errors/warnings."""
         f = self.facts
         out = [f"{self.target}: {'OK' if self.ok else f'{len(self.errors)} problem(s)'}"]
+        if f.get("receivers"):
+            out.append("  heard by " + ", ".join(f"{r['name']} ({r['channels']} ch)" for r in f["receivers"]))
         for split, s in f.get("splits", {}).items():
             parts = []
             if "clips" in s:

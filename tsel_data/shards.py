@@ -15,7 +15,7 @@ from tqdm import tqdm
 
 from .atomic import write_json
 from .config import Config, parse_config
-from .config.receiver import array_pose
+from .config.receiver import array_poses
 from .errors import AudioError, BankError, DatasetError
 from .executors import Runner
 from .h5str import as_strs
@@ -233,13 +233,13 @@ def _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, 
             total = sum(t.stop - t.start for t in tasks if t.split == split)
             if not total:
                 continue
-            bar = _bar(split, total, total - sum(j[1].stop - j[1].start for j in jobs), progress)
-            for t, n, problem in runner.map_unordered(_render_task, jobs):
-                done[t.split] += n
-                bar.update(n)
-                if problem:
-                    failed.append(f"{t.files[0]}: {problem}")
-            bar.close()
+            # closed however the loop ends: a stopped run leaves its bar where it was, drawn once
+            with _bar(split, total, total - sum(j[1].stop - j[1].start for j in jobs), progress) as bar:
+                for t, n, problem in runner.map_unordered(_render_task, jobs):
+                    done[t.split] += n
+                    bar.update(n)
+                    if problem:
+                        failed.append(f"{t.files[0]}: {problem}")
     if failed:
         raise DatasetError(f"{len(failed)} shard(s) could not be rendered (the others were), e.g. {failed[0]}; fix the "
                            f"input and rerun with --resume (shards that read a changed clip are rendered again)")
@@ -310,5 +310,6 @@ def finalize(out_dir: str, corpus_dir: str | None = None, bank: str | None = Non
 
 def dataset_attrs(cfg: Config) -> dict:
     """The shard attributes of ``cfg``'s datasets (store.dataset.shard_attrs)."""
+    poses = array_poses(cfg, side=0.1)
     return shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio,
-                       array_pose(cfg).channel_names())
+                       poses[0].channel_names(), {p.format: list(p.channel_names()) for p in poses[1:]})

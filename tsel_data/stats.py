@@ -17,6 +17,7 @@ import numpy as np
 
 from .atomic import atomic_output
 from .geometry import azimuth_difference, circular_mean
+from .evaluate import scene_snr
 from .store.reader import list_splits, open_dataset
 
 AZ_BIN = 10
@@ -46,7 +47,7 @@ def split_stats(root: str, split: str) -> dict:
         scenes = list(ds.iter_labels())  # labels only: small
     raw = {k: [] for k in ("target_az", "target_el", "separation", "target_dist", "interferer_dist", "room_x",
                            "room_y", "room_z", "volume", "rt60", "rt60_measured", "target_level", "tir", "peak",
-                           "target_active", "query_words", "speed", "moves")}
+                           "target_active", "query_words", "speed", "moves", "snr")}
     clip_uses, target_clips = Counter(), Counter()
     scenarios, motions = Counter(), Counter()
     moving = 0
@@ -62,6 +63,8 @@ def split_stats(root: str, split: str) -> dict:
                     target_clips[s.clip_id] += 1
             if k > 0 and s.tir_db is not None:
                 raw["tir"].append(s.tir_db)
+            elif k > 0 and s.power_db is not None and s.level_dbfs is not None:  # levels that follow distance: as heard
+                raw["tir"].append(rec.sources[0].level_dbfs - s.level_dbfs)
         act = sc.active.astype(bool)
         t_az = _mean_az(sc.azimuth[0], act[0])
         raw["target_az"].append(t_az)
@@ -91,6 +94,8 @@ def split_stats(root: str, split: str) -> dict:
         raw["peak"].append(rec.levels.peak)
         raw["target_active"].append(float(act[0].mean()))
         raw["query_words"].append(len(sc.query.split()))
+        if rec.noise:
+            raw["snr"].append(scene_snr(rec.noise))
     n = len(scenes)
     az = np.asarray([a for a in raw["target_az"] if a is not None])
     hist, _ = np.histogram(az, bins=np.arange(-180, 181, AZ_BIN))
@@ -115,7 +120,8 @@ def split_stats(root: str, split: str) -> dict:
         "rt60_s": {"requested": _summ(raw["rt60"]), "measured": _summ(raw["rt60_measured"]),
                    "measured_minus_requested": _summ([m - r for r, m in pairs])},
         "levels_db": {"target_dbfs": _summ(raw["target_level"]), "tir": _summ(raw["tir"]),
-                      "peak_dbfs": _summ([20 * np.log10(p) for p in raw["peak"] if p])},
+                      "peak_dbfs": _summ([20 * np.log10(p) for p in raw["peak"] if p]),
+                      "snr": _summ([v for v in raw["snr"] if v is not None])},
         "target_active_fraction": _summ(raw["target_active"]),
         "query_words": _summ(raw["query_words"]),
         "moving_sources": {"scenes": dict(Counter(raw["moves"])), "speed_deg_s": _summ(raw["speed"])},
@@ -208,6 +214,8 @@ def format_text(stats: dict) -> str:
         out.append(_line("RT60 measured-requested", s["rt60_s"]["measured_minus_requested"]))
         out.append(_line("target level (dBFS)", s["levels_db"]["target_dbfs"], fmt=".1f"))
         out.append(_line("TIR (dB)", s["levels_db"]["tir"], fmt=".1f"))
+        if s["levels_db"]["snr"].get("n"):
+            out.append(_line("SNR against all noise (dB)", s["levels_db"]["snr"], fmt=".1f"))
         out.append(_line("peak (dBFS)", s["levels_db"]["peak_dbfs"], fmt=".1f"))
         out.append(_line("target active fraction", s["target_active_fraction"]))
         out.append(_line("target elevation (deg)", s["target_elevation_deg"], fmt=".1f"))

@@ -52,14 +52,17 @@ def dataset_roots(root: str, corpus_dir: str | None = None, bank: str | None = N
 
 
 def render_stems(recipe: SceneRecipe, mixture: np.ndarray | None = None,
-                 roots: Roots | None = None) -> tuple[np.ndarray, bool]:
-    """Every source alone, float32 [S, C, T], as it sounds in the scene; and whether
-    their sum matches ``mixture`` (the stored audio, when given) within
-    :data:`MATCH_TOLERANCE`. ``roots``: where the recipe's files are."""
+                 roots: Roots | None = None, receiver: int = 0, with_noise: bool = False):
+    """Every source alone, float32 [S, C, T], as it sounds in the scene to receiver
+    ``receiver`` (0: ``recipe.array``, k: ``recipe.receivers[k - 1]``); and whether their
+    sum, with the noise, matches ``mixture`` (the stored audio, when given) within
+    :data:`MATCH_TOLERANCE`. ``roots``: where the recipe's files are. ``with_noise``: also
+    return the scene's noise as mixed ([C, T], or None without ``[noise]``)."""
     parts = mix_parts((roots or Roots()).resolve(recipe))
-    stems = parts.stems()
-    same = mixture is None or float(np.max(np.abs(parts.mix - mixture))) <= MATCH_TOLERANCE
-    return stems, same
+    stems = parts.stems(receiver)
+    mix = parts.mix if receiver == 0 else parts.others[receiver - 1][1]
+    same = mixture is None or float(np.max(np.abs(mix - mixture))) <= MATCH_TOLERANCE
+    return (stems, same, parts.noise_stem(receiver)) if with_noise else (stems, same)
 
 
 def write_stems(root: str, scene, base: str, corpus_dir: str | None = None,
@@ -74,12 +77,18 @@ def write_stems(root: str, scene, base: str, corpus_dir: str | None = None,
         flag = "--bank" if recipe.bank is not None and gone[0] == recipe.bank.path else "--corpus-dir"
         raise DatasetError(f"the stems are rendered from the clips and {gone[0]} is not where the plan says; pass "
                            f"{flag} with where it is now")
-    stems, same = render_stems(recipe, scene.audio, roots)
+    poses = (recipe.array, *recipe.receivers)
+    which = next((k for k, p in enumerate(poses) if p.format == scene.format), 0)  # the receiver the scene was read for
+    stems, same, noise = render_stems(recipe, scene.audio, roots, which, with_noise=True)
     stem = os.path.splitext(base)[0]
     paths = []
     for k, src in enumerate(recipe.sources):
         name = "target" if k == 0 else f"interferer{k}"
         path = f"{stem}.{name}.stereo.wav"
-        save_wav(path, stereo_preview(stems[k], recipe.array.format, recipe.array.mics()).T, recipe.fs)
+        save_wav(path, stereo_preview(stems[k], poses[which].format, poses[which].mics()).T, recipe.fs)
+        paths.append(path)
+    if noise is not None:  # what is not a source: ambience, diffuse noise, babble, sensor noise
+        path = f"{stem}.noise.stereo.wav"
+        save_wav(path, stereo_preview(noise, poses[which].format, poses[which].mics()).T, recipe.fs)
         paths.append(path)
     return paths, same

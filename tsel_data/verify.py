@@ -419,15 +419,17 @@ class VerifyReport:
 
 
 def verify_dataset(root: str, splits=None, tolerance: float = 20.0, min_frames: int = 3,
-                   max_scenes: int | None = None, progress: bool | None = False) -> VerifyReport:
+                   max_scenes: int | None = None, progress: bool | None = False,
+                   receiver: str | None = None) -> VerifyReport:
     """Run :func:`verify_scene` on every scene (or the first ``max_scenes``) of each split.
 
     ``progress``: a bar per split (None: when stderr is a terminal). A dataset still
-    being made is verified on its finished shards.
+    being made is verified on its finished shards. ``receiver``: whose audio is judged,
+    for a dataset heard by several (default the first).
     """
     report = VerifyReport(tolerance)
     for split in (list(splits) if splits else list_splits(root, unfinished=True)):
-        with open_dataset(root, split, unfinished=True) as ds:
+        with open_dataset(root, split, unfinished=True, receiver=receiver) as ds:
             n = len(ds) if max_scenes is None else min(len(ds), max_scenes)
             res = []
             with bar(n, f"verify {split}", "scene", progress) as b:

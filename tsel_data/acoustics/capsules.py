@@ -33,7 +33,7 @@ from ..choices import Baffle, ReceiverModel
 from ..geometry import SOUND_SPEED, array_to_room, foa_gains_of
 from ..receivers import ArrayPose
 from .ism import FD_PHASES, FD_TAPS, _split, add_impulses, fd_bank, grid_to_signal, new_grid
-from .late import FOA_DIFFUSE_GAINS, csd_noise, diffuse_coherence, diffuse_filters as _diffuse_filters_omni
+from .late import FOA_DIFFUSE_GAINS, csd_noise, diffuse_coherence
 from .late import diffuse_noise
 
 
@@ -99,9 +99,6 @@ class Spaced:
         Φ_ii = α_i² + (1-α_i)²/3; omnis: sinc(kd)."""
         return spaced_csd(freqs, self.mics, self.alpha, self.axes)
 
-    def diffuse_filters(self, rng, array) -> np.ndarray:
-        return _diffuse_filters_omni(self.fs, rng, positions=array.mics())
-
 
 class Ambisonic:
     """First-order ambisonics (ACN/SN3D) at the array centre."""
@@ -144,9 +141,6 @@ class Ambisonic:
         """Uncorrelated W, Y, Z, X with energies 1 : 1/3 : 1/3 : 1/3 (the mean of u_i² over the sphere)."""
         return np.broadcast_to(np.diag(FOA_DIFFUSE_GAINS ** 2), (len(np.atleast_1d(freqs)), 4, 4)).copy()
 
-    def diffuse_filters(self, rng, array) -> np.ndarray:
-        return _diffuse_filters_omni(self.fs, rng, foa=True)
-
 
 class Mixed:
     """Channels mixed from a base receiver's by ``matrix`` [C, C_base] (the spec's
@@ -176,10 +170,6 @@ class Mixed:
 
     def diffuse_csd(self, freqs) -> np.ndarray:
         return np.einsum("cb,fbd,ed->fce", self.matrix, self.base.diffuse_csd(freqs), self.matrix)
-
-    def diffuse_filters(self, rng, array) -> np.ndarray:
-        base = ArrayPose(array.spec.base, array.centre, array.yaw)
-        return (self.matrix @ self.base.diffuse_filters(rng, base)).astype(np.float32)
 
 
 class RigidSphere:

@@ -7,12 +7,15 @@ take seconds to import).
 """
 from __future__ import annotations
 
+import os
 import sys
+from concurrent.futures.process import BrokenProcessPool
 
 import click
 from click.exceptions import NoArgsIsHelpError
 
 from ..errors import TselError
+from ..executors import Stopped, stop_requested, stop_signals
 from .bank import bank
 from .check import check_cmd
 from .corpus import corpus
@@ -37,8 +40,25 @@ for _cmd in (generate_cmd, plan_cmd, render_cmd, finalize_cmd, check_cmd, inspec
 
 
 def main(argv=None) -> None:
+    # every command stops the same way on SIGINT, SIGTERM and SIGHUP (executors.py)
+    with stop_signals():
+        try:
+            rc = _run(argv)
+        except Stopped as e:
+            _stopped(e, argv)
+        except BrokenProcessPool:
+            # a pool of the planning or clip-check stage lost a worker: to a stop signal
+            # (the group's), or killed alone
+            if stop_requested():
+                _stopped(Stopped(stop_requested()), argv)
+            _fail("a worker process died (killed, or out of memory?); nothing half-written was kept: run the command "
+                  "again, with fewer --workers if memory is short")
+    sys.exit(rc if isinstance(rc, int) else 0)
+
+
+def _run(argv):
     try:
-        rc = cli.main(args=argv, prog_name="tsel", standalone_mode=False)
+        return cli.main(args=argv, prog_name="tsel", standalone_mode=False)
     except TselError as e:
         _fail(str(e))
     except NoArgsIsHelpError as e:  # `tsel` or `tsel bank` alone: the help is the answer
@@ -57,7 +77,39 @@ def main(argv=None) -> None:
     except OSError as e:
         # full disk, unwritable output: say which file, no traceback
         _fail(f"{e.strerror or e}: {e.filename or ''}".rstrip(": "))
-    sys.exit(rc if isinstance(rc, int) else 0)
+
+
+# what is kept after a stop, and how to go on, by command
+_AFTER_STOP = {"generate": "rerun with --resume to continue: finished shards are kept",
+               "render": "run it again to render the rest: finished shards are kept"}
+
+
+def _stopped(e: Stopped, argv) -> None:
+    """The run was stopped by a signal: one line (unless the stop said so already while
+    its tasks finished), and exit 128 + the signal's number."""
+    args = sys.argv[1:] if argv is None else argv
+    command = next((a for a in args if not a.startswith("-")), "")
+    after = _AFTER_STOP.get(command, "run it again: nothing half-written was kept")
+    if e.now:
+        what = f" {e.discarded} {e.noun}{'' if e.discarded == 1 else 's'} in flight discarded;" if e.discarded else ""
+        line = f"stopped now ({e.signal_name}):{what} {after}"
+    elif not e.announced:
+        line = f"stopped ({e.signal_name}); {after}"
+    else:
+        line = ""
+    try:
+        if line:
+            click.echo(line, err=True)
+        sys.stdout.flush()
+        sys.stderr.flush()
+    except OSError:  # the terminal is gone
+        pass
+    if argv is None:
+        # the command is the process: leave now, while the handlers still answer. Past
+        # them the interpreter's own exit (joining threads, unloading modules) would die
+        # of a further signal with no exit code of ours; everything of the run is closed
+        os._exit(e.code)
+    sys.exit(e.code)
 
 
 def _fail(message: str, code: int = 2) -> None:

@@ -15,14 +15,15 @@ from .options import note_unfinished, roots_options
               "X.interferer1.stereo.wav, ...).")
 @click.option("--no-stems", is_flag=True, help="With --wav: not the per-source stems (they are rendered again from "
               "the recipe, which needs the clips).")
+@click.option("--receiver", help="A dataset heard by several receivers: this one's audio (default the first).")
 @roots_options
-def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems, corpus_dir, bank):
+def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems, receiver, corpus_dir, bank):
     """Show SCENE of DATASET_DIR: a scene id (test-000003) or SPLIT/INDEX (test/3)."""
     from ..errors import TselError
     from ..inspect import inspect_scene, stereo_path  # h5py and matplotlib: only when inspect runs
 
     note_unfinished(dataset_dir)
-    found, text = inspect_scene(dataset_dir, scene, split=split, png=png, wav=wav)
+    found, text = inspect_scene(dataset_dir, scene, split=split, png=png, wav=wav, receiver=receiver)
     click.echo(text)
     if png:
         click.echo(f"picture: {png}")

@@ -4,12 +4,20 @@ import click
 
 @click.command("presets")
 @click.argument("name", required=False)
-def presets_cmd(name):
+@click.option("--receivers", "receivers", is_flag=True, help="List the receivers scene.format can name instead.")
+def presets_cmd(name, receivers):
     """List the built-in presets with what each is for and what it needs, or print NAME as
     a complete TOML config to start from (its description, what it needs, then every key
     with its help and unit as comments)."""
     from ..config import load_config, preset_names, preset_text, to_toml
 
+    if receivers:
+        from ..receivers import RECEIVERS
+
+        for spec in RECEIVERS.values():
+            n = "config" if spec.configured else str(len(spec.layout(_SIDED)))
+            click.echo(f"{spec.name:<13}{n:>6} ch  {spec.summary}")
+        return
     if not name:
         for p in preset_names():
             text = " ".join(_description(preset_text(p)).split())
@@ -23,6 +31,15 @@ def presets_cmd(name):
     if needs:
         header += "\n\nWhat it needs on the command line:\n" + "\n".join(f"  {n}" for n in needs)
     click.echo(to_toml(cfg, comments=True, header=header), nl=False)
+
+
+class _Sided:
+    """A pose for counting a receiver's channels: mic4's count does not depend on its side."""
+
+    side = 0.11
+
+
+_SIDED = _Sided()
 
 
 def preset_needs(cfg) -> list[str]:

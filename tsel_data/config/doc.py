@@ -11,6 +11,7 @@ import re
 import sys
 from dataclasses import fields
 
+from ..doctables import rewrite
 from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
 
 _BLOCK = re.compile(r"(<!-- keys:(?P<name>[\w.]+) -->\n)(?P<body>.*?)(<!-- /keys -->)", re.S)
@@ -52,14 +53,7 @@ def render(text: str) -> str:
 
 
 def main(argv=None) -> None:
-    path = (argv or sys.argv[1:] or ["docs/config.md"])[0]
-    with open(path, encoding="utf-8") as f:
-        text = f.read()
-    new = render(text)
-    if new != text:
-        with open(path, "w", encoding="utf-8") as f:
-            f.write(new)
-    print(f"{path}: {'updated' if new != text else 'up to date'}")
+    rewrite((argv or sys.argv[1:] or ["docs/config.md"])[0], render)
 
 
 if __name__ == "__main__":

@@ -8,20 +8,21 @@ import os
 
 from ..choices import ReceiverModel
 from ..errors import ConfigError
-from ..receivers import MAX_CHANNELS, PATTERN_ALPHA, ArrayPose, receiver
+from ..receivers import MAX_CHANNELS, NAMES, PATTERN_ALPHA, ArrayPose, canonical, receiver
 from .schema import Config
 
 
 def array_pose(cfg: Config, centre=(0.0, 0.0, 0.0), yaw: float = 0.0, side: float | None = None,
-               hrtf: str | None = None) -> ArrayPose:
+               hrtf: str | None = None, fmt: str | None = None) -> ArrayPose:
     """The receiver of ``cfg`` at ``centre`` (room frame, m) turned by ``yaw`` degrees.
 
     side: mic4's side (m), drawn per scene; hrtf: a binaural receiver's SOFA file as the
-    plan names it (relative to its root). A custom array's capsules, patterns and
+    plan names it (relative to its root); fmt: another receiver than ``scene.format`` (one
+    of ``scene.receivers``). A custom array's capsules, patterns and
     orientations are resolved here (one pattern for all, axes pointing away from the
     centre by default) and stored whole, so its recipes need nothing else.
     """
-    spec = receiver(cfg.scene.format)
+    spec = receiver(fmt or cfg.scene.format)
     a = cfg.array
     kw = {}
     if spec.configured:
@@ -33,6 +34,16 @@ def array_pose(cfg: Config, centre=(0.0, 0.0, 0.0), yaw: float = 0.0, side: floa
         kw["hrtf"] = hrtf if hrtf is not None else os.path.basename(os.path.normpath(a.hrtf))
         kw["interpolation"] = a.hrtf_interpolation
     return ArrayPose(spec.name, tuple(centre), yaw, side if spec.size_key == "side" else None, **kw)
+
+
+def receiver_names(cfg: Config) -> tuple[str, ...]:
+    """Every receiver of ``cfg``: ``scene.format`` first, then ``scene.receivers``."""
+    return (receiver(cfg.scene.format).name, *(receiver(r).name for r in cfg.scene.receivers))
+
+
+def array_poses(cfg: Config, centre=(0.0, 0.0, 0.0), yaw: float = 0.0, side: float | None = None) -> list:
+    """Every receiver of ``cfg`` at one place (:func:`array_pose` each; one side for all sized ones)."""
+    return [array_pose(cfg, centre, yaw, side, fmt=name) for name in receiver_names(cfg)]
 
 
 def custom_capsules(capsules, patterns=(), orientations=()) -> dict:
@@ -65,20 +76,39 @@ def receiver_problems(cfg: Config, where: str) -> list[ConfigError]:
     capsule table (1-64 finite positions, no two omnis at one point, known patterns, one
     axis per capsule or one for all), a binaural receiver's HRTF file, and no custom or
     binaural key set for another receiver."""
-    spec, a = receiver(cfg.scene.format), cfg.array
     fmt = cfg.scene.format
+    if canonical(fmt) is None:
+        return []  # field_problems names it, with the choices
+    spec, a = receiver(fmt), cfg.array
     out: list[ConfigError] = []
-    if not spec.configured:
+    names = [fmt, *cfg.scene.receivers]
+    unknown = [r for r in cfg.scene.receivers if not isinstance(r, str) or canonical(r) is None]
+    if unknown:
+        return [ConfigError(f"{where}: scene.receivers: unknown receiver {unknown[0]!r}; known: {', '.join(NAMES)}")]
+    seen = [canonical(n) for n in names]
+    if len(set(seen)) != len(seen):
+        dup = next(n for n in seen if seen.count(n) > 1)
+        return [ConfigError(f"{where}: scene.receivers names {dup!r} twice (scene.format is heard anyway); name "
+                            f"each receiver once")]
+    if cfg.room.bank:
+        base = {receiver(n).bank_format for n in names}
+        if len(base) > 1:
+            return [ConfigError(f"{where}: scene.format and scene.receivers need RIR banks of {sorted(base)}; a "
+                                f"bank holds one receiver's RIRs: keep the receivers one bank serves (e.g. foa "
+                                f"and stereo)")]
+    specs = [receiver(n) for n in names]
+    if not any(s.configured for s in specs):
         for key in ("capsules", "patterns", "orientations"):
             if getattr(a, key):
                 out.append(ConfigError(f"{where}: array.{key} is set but scene.format = {fmt!r}; it describes a "
                                        f"custom array: set scene.format = \"custom\" or remove array.{key}"))
     else:
         out += _capsule_problems(a, where)
-    if spec.model == ReceiverModel.HRTF and not a.hrtf:
-        out.append(ConfigError(f"{where}: scene.format = {fmt!r} needs array.hrtf = \"FILE.sofa\" (a SOFA "
+    ears = any(s.model == ReceiverModel.HRTF for s in specs)
+    if ears and not a.hrtf:
+        out.append(ConfigError(f"{where}: the binaural receiver needs array.hrtf = \"FILE.sofa\" (a SOFA "
                                f"SimpleFreeFieldHRIR file, e.g. the MIT KEMAR set)"))
-    if spec.model != ReceiverModel.HRTF and a.hrtf:
+    if not ears and a.hrtf:
         out.append(ConfigError(f"{where}: array.hrtf is set but scene.format = {fmt!r} has no ears; set "
                                f"scene.format = \"binaural\" or remove array.hrtf"))
     return out
@@ -139,7 +169,7 @@ def _shown(v) -> str:
 def hrtf_problem(cfg: Config) -> ConfigError | None:
     """A binaural receiver's HRTF that cannot be used: missing, not a SOFA
     SimpleFreeFieldHRIR file (acoustics/hrtf.py says what is wrong), one line."""
-    if receiver(cfg.scene.format).model != ReceiverModel.HRTF or not cfg.array.hrtf:
+    if all(receiver(n).model != ReceiverModel.HRTF for n in receiver_names(cfg)) or not cfg.array.hrtf:
         return None
     path = os.path.abspath(os.path.expanduser(cfg.array.hrtf))
     if not os.path.isfile(path):

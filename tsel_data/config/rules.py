@@ -19,10 +19,11 @@ import re
 from dataclasses import fields
 
 from ..acoustics.metrics import sabine_min_rt60
-from ..choices import Pairing, QueryType, Relation, SimilarityMeasure, values
+from ..choices import LevelModel, Pairing, QueryType, Relation, SimilarityMeasure, values
 from ..distributions import Dist
 from ..errors import ConfigError, GeometryError
-from .receiver import array_pose, receiver_problems
+from ..receivers import canonical
+from .receiver import array_poses, receiver_problems
 from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
 
 MAX_NUMBER = 1e9  # larger config numbers are typos (seeds excepted)
@@ -220,13 +221,16 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
                                f"{cfg.scene.min_separation:g}° is impossible with {k} directional sources: the "
                                f"largest possible is {360 / k:g}° (360° / {k}); lower scene.min_separation"))
     out += _query_problems(cfg, where)
-    receiver_errors = receiver_problems(cfg, at(where, "scene.format", "array"))
+    out += _noise_problems(cfg, where)
+    receiver_errors = receiver_problems(cfg, at(where, "array.capsules", "array.patterns", "array.orientations",
+                                                "array.hrtf", "scene.receivers", "scene.format"))
     out += receiver_errors
-    if receiver_errors:
-        return out  # the rest needs a receiver that can be built
-    if not cfg.room.bank and cfg.room.rir_method == "pyroomacoustics" and not array_pose(cfg).free_field_omnis:
+    if receiver_errors or canonical(cfg.scene.format) is None:
+        return out  # the rest needs a receiver that can be built (field_problems names an unknown one)
+    not_omni = [p.format for p in array_poses(cfg) if not p.free_field_omnis]
+    if not cfg.room.bank and cfg.room.rir_method == "pyroomacoustics" and not_omni:
         out.append(ConfigError(f"{at(where, 'room.rir_method', 'scene.format')}: room.rir_method = \"pyroomacoustics\" renders free-field omni "
-                               f"capsules only; use \"hybrid\" or \"ism\" for scene.format = \"{cfg.scene.format}\""))
+                               f"capsules only; use \"hybrid\" or \"ism\" for {not_omni[0]}"))
     if not cfg.room.bank and cfg.room.rir_method == "pyroomacoustics":
         dims = [getattr(cfg.room, k).bounds for k in ("length", "width", "height")]
         rt = cfg.room.rt60.bounds
@@ -238,6 +242,21 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
                     f"{where}: room.rt60 minimum {rt[0]} s is below what pyroomacoustics can make in the largest "
                     f"room ({limit:.2f} s: Sabine's RT60 with fully absorbing walls); raise room.rt60, shrink the "
                     f"room, or use room.rir_method = \"hybrid\""))
+    return out
+
+
+def _noise_problems(cfg: Config, where: str) -> list[ConfigError]:
+    """[noise] and scene.levels with the rest of the config."""
+    out = []
+    if cfg.noise.ambience and cfg.scene.receivers:
+        out.append(ConfigError(f"{at(where, 'noise.ambience', 'scene.receivers')}: noise.ambience is a recording made "
+                               f"with one receiver, so it cannot be heard by scene.receivers too; make one dataset per "
+                               f"receiver, or use noise.diffuse (simulated for every receiver)"))
+    if cfg.scene.levels == LevelModel.DISTANCE and (cfg.scene.same_kind_distractors > 0
+                                                     or QueryType.COMPOSITE in set(cfg.scene.query.options)):
+        out.append(ConfigError(f"{at(where, 'scene.levels')}: same-kind distractors (composite queries) are told "
+                               f"apart by their TIR, which scene.levels = \"distance\" does not set; use "
+                               f"scene.levels = \"tir\" with them"))
     return out
 
 
@@ -337,7 +356,7 @@ def _smallest_room_problems(cfg: Config, bounds: dict, where: str) -> list[Geome
     lmin, wmin, hmin = bounds["length"][0], bounds["width"][0], bounds["height"][0]
     out = []
     floor = min(lmin, wmin)
-    radius = array_pose(cfg, side=arr.side.bounds[1] if arr.side.bounds else 0.0).radius()
+    radius = max(p.radius() for p in array_poses(cfg, side=arr.side.bounds[1] if arr.side.bounds else 0.0))
     need = 2 * (arr.wall_margin + radius)
     if floor < need:
         key = "room.length" if lmin <= wmin else "room.width"

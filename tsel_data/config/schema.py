@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-from ..choices import (Additive, AudioCoding, BadClipPolicy, Baffle, CheckLevel, CorpusFormat, HrtfInterpolation, Motion,
-                       Pairing, PathKind, QueryType, Relation, RirMethod, Scenario, SimilarityMeasure, values)
+from ..choices import (Additive, AudioCoding, BadClipPolicy, Baffle, CheckLevel, CorpusFormat, HrtfInterpolation,
+                       LevelModel, Motion, NoiseSpectrum, Pairing, PathKind, QueryType, Relation, RirMethod, Scenario,
+                       SegmentRule, SensorLevel, SimilarityMeasure, values)
 from ..distributions import Dist
 from ..jsonable import jsonable
 from ..receivers import NAMES as RECEIVER_NAMES
@@ -32,11 +33,11 @@ def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None,
     return field(default=default, metadata=meta)
 
 
-def dist(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, why: str = "",
+def dist(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, le=None, why: str = "",
          integer: bool = False, new: bool = False):
     """A sampled field (a constant or a distribution); bounds apply to every value it can
     draw; ``integer``: a count, so a constant or a ``choose`` of whole numbers."""
-    meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": None,
+    meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": le,
             "lt": None, "why": why, "path": False, "dist": True, "integer": integer, "new": new}
     return field(default_factory=lambda: Dist.parse(default, "default"), metadata=meta)
 
@@ -104,6 +105,10 @@ class SceneConfig:
 
     format: str = option("mic4", "the receiver: an array, an ambisonic microphone, a stereo pair or two ears "
                                  "(`tsel presets --receivers` lists them; docs/format.md)", choices=RECEIVER_NAMES)
+    receivers: tuple = option((), "more receivers to hear every scene in the same pass, at the same place and "
+                                  "turn, e.g. `[\"foa\", \"tetra\"]`: same room, sources, clips, paths and gains "
+                                  "(levels are set on `format`'s channels), labels identical in each one's frame; "
+                                  "each one's audio in the shard's `receivers/NAME/` (docs/format.md)", new=True)
     scenario: Dist = dist(["choose", ["two-directional"]],
                           "`two-directional`, or `directional+additive` (the first interferer added to every "
                           "channel unspatialised), or a `choose` of both", choices=Scenario)
@@ -116,7 +121,12 @@ class SceneConfig:
     interferers: Dist = dist(1, "interferers per scene (a distribution is allowed); in `directional+additive` the "
                                 "first is additive", unit="sources", ge=1, why="a scene holds at least two sources",
                      integer=True)
-    tir_db: Dist = dist(["uniform", -5.0, 5.0], "target-to-interferer ratio at the array, per interferer", unit="dB")
+    tir_db: Dist = dist(["uniform", -5.0, 5.0], "target-to-interferer ratio at the array, per interferer "
+                                              "(`levels = \"tir\"`; additive sources always)", unit="dB")
+    levels: str = option("tir", "how source levels are set: `tir` (the paper's: each interferer `tir_db` below the "
+                                "target at the array, whatever the distance) or `distance` (each source gets a level "
+                                "at 1 m, `sources.power`, and its level at the array follows from its distance and "
+                                "the room: nearer is louder)", choices=LevelModel, new=True)
     min_separation: float = option(20.0, "minimum azimuth between directional sources", unit="deg")
     separated_frames: float = option(0.8, "fraction of label frames on which `min_separation` must hold; static "
                                           "sources hold it on every frame or none, a moving source may cross "
@@ -235,6 +245,44 @@ class SourcesConfig:
     distance: Dist = dist(["uniform", 1.0, 3.0], "distance from the array centre", unit="m", ge=0.0)
     height: Dist = dist(["uniform", 0.5, 2.0], "source height above the floor", unit="m", ge=0.0)
     wall_margin: float = option(0.5, "minimum distance from every wall, floor and ceiling", unit="m")
+    power: Dist = dist(["uniform", -5.0, 5.0], "with `scene.levels = \"distance\"`: each directional source's "
+                                               "level at 1 m (its direct sound, relative: the scene is then scaled "
+                                               "so the target sits at `audio.target_level_dbfs`); its level at the "
+                                               "array follows from the room", unit="dB re 1 m", ge=-60.0, le=60.0,
+                       new=True)
+
+
+@dataclass(frozen=True)
+class NoiseConfig:
+    """What else the receiver hears: the room's ambience, a diffuse noise field, babble,
+    sensor noise. None of it is a source: it has no label; its kind, SNR and level are in
+    the record (docs/format.md). Every SNR is against the target's omni energy over the
+    whole scene, as the DCASE generator defines it (the mean of the level channels: W for
+    FOA, the mean of the capsules for arrays)."""
+
+    ambience: str = option("", "recorded ambience: a TAU-SNoise_DB folder (room folders as distributed, matched to "
+                               "the bank's rooms by name) or a folder of your multichannel recordings (per-room "
+                               "subfolders, or loose files for any room); channels and rate must be the "
+                               "receiver's", path=True, new=True)
+    ambience_snr: Dist = dist(["uniform", 6.0, 30.0], "SNR of the ambience (the DCASE generator's range)", unit="dB",
+                              ge=-20.0, le=100.0, new=True)
+    ambience_segments: str = option("random", "which stretch of the recording a scene hears: `random` (an offset "
+                                              "drawn per scene) or `consecutive` (the generator's rule: scene i of a "
+                                              "split takes block i)", choices=SegmentRule, new=True)
+    diffuse: str = option("none", "a simulated diffuse noise field with the receiver's diffuse-field coherence: "
+                                  "`white`, `pink`, `brown`, or `clip` (the long-term spectrum of a corpus clip); "
+                                  "`none`", choices=NoiseSpectrum, new=True)
+    diffuse_snr: Dist = dist(["uniform", 10.0, 30.0], "SNR of the diffuse noise", unit="dB", ge=-20.0, le=100.0,
+                             new=True)
+    babble: int = option(0, "a background of this many corpus clips, each a plane wave from its own random far "
+                            "direction (0: none)", unit="clips", ge=0, le=64, new=True)
+    babble_snr: Dist = dist(["uniform", 10.0, 30.0], "SNR of the babble", unit="dB", ge=-20.0, le=100.0, new=True)
+    sensor: str = option("none", "independent noise on every channel (the microphones' own): `dbfs` (its RMS per "
+                                 "channel is `sensor_level` dBFS), `snr` (`sensor_level` is its SNR) or `none`",
+                         choices=SensorLevel, new=True)
+    sensor_level: Dist = dist(["uniform", -90.0, -70.0], "sensor noise: dBFS (`sensor = \"dbfs\"`) or SNR in dB "
+                                                        "(`sensor = \"snr\"`)", unit="dBFS or dB", ge=-200.0,
+                              le=100.0, new=True)
 
 
 @dataclass(frozen=True)
@@ -265,6 +313,7 @@ class Config:
     room: RoomConfig = field(default_factory=RoomConfig)
     array: ArrayConfig = field(default_factory=ArrayConfig)
     sources: SourcesConfig = field(default_factory=SourcesConfig)
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
     def to_dict(self, every_key: bool = False) -> dict:
@@ -274,6 +323,8 @@ class Config:
         if not every_key:
             for name, sec in ((sec, getattr(self, sec)) for sec in SECTIONS):
                 _drop_unset(sec, d[name])
+                if name in NEW_SECTIONS and not d[name]:
+                    del d[name]  # a section added later, left unset: datasets made without it keep their bytes
             for name, sp in self.splits.items():
                 _drop_unset(sp, d["splits"][name])
         return d
@@ -289,8 +340,9 @@ class Config:
 
 SECTIONS = {
     "corpus": CorpusConfig, "audio": AudioConfig, "scene": SceneConfig, "room": RoomConfig,
-    "array": ArrayConfig, "sources": SourcesConfig, "output": OutputConfig,
+    "array": ArrayConfig, "sources": SourcesConfig, "noise": NoiseConfig, "output": OutputConfig,
 }
+NEW_SECTIONS = {"noise"}
 TOP_KEYS = ("name", "seed", "on_bad_clip", "splits", *SECTIONS)
 TOP_FIELDS = ("name", "seed", "on_bad_clip")
 

@@ -29,24 +29,29 @@ CONVENTIONS = {
 }
 
 
-def conventions(fmt: str) -> dict:
-    """The conventions block of a dataset of receiver ``fmt``: the shared ones, and the
-    receiver's own (mic4 and foa datasets keep format 1's block)."""
-    if fmt in CONVENTIONS:
+def conventions(fmt: str, others=()) -> dict:
+    """The conventions block of a dataset of receiver ``fmt`` (and the ``others`` heard in
+    the same pass): the shared ones, and each receiver's own (mic4 and foa datasets keep
+    format 1's block)."""
+    names = [n for n in (fmt, *others) if n not in CONVENTIONS]
+    if not names:
         return CONVENTIONS
-    spec = receiver(fmt)
-    return {**{k: v for k, v in CONVENTIONS.items() if k != "sources"}, spec.name: spec.convention,
-            "sources": CONVENTIONS["sources"]}
+    return {**{k: v for k, v in CONVENTIONS.items() if k != "sources"},
+            **{receiver(n).name: receiver(n).convention for n in names}, "sources": CONVENTIONS["sources"]}
 
 
-def shard_attrs(fs: int, label_hop: float, fmt: str, coding: str = "float32", channels=None) -> dict:
+def shard_attrs(fs: int, label_hop: float, fmt: str, coding: str = "float32", channels=None,
+                receivers: dict | None = None) -> dict:
     """The attributes of every shard (HDF5 attrs, JSON header) and of ``dataset.json``;
     ``audio_coding`` only when it is not float32 (format version 1's only coding).
     channels: the receiver's channel names (default: its fixed ones; a custom array's
-    follow its capsules)."""
+    follow its capsules). receivers: further receivers heard in the same pass, name ->
+    channel names (``receivers``, only when there are some)."""
     names = list(channels) if channels is not None else list(receiver(fmt).channels())
     attrs = {"fs": fs, "label_hop": label_hop, "format": fmt, "channel_names": names,
              "format_version": FORMAT_VERSION}
+    if receivers:
+        attrs["receivers"] = {k: list(v) for k, v in receivers.items()}
     if coding != "float32":
         attrs["audio_coding"] = str(coding)
     return attrs
@@ -89,7 +94,11 @@ class DatasetDoc:
     finished: bool = True
     planned: dict = field(default_factory=dict)
     shards_planned: int = 0
+    receivers: dict = field(default_factory=dict)  # further receivers of one pass: name -> channel names
 
+    def receiver_names(self) -> list[str]:
+        """Every receiver whose audio the dataset holds: ``format`` first."""
+        return [self.format, *self.receivers]
     def shards(self, split: str) -> list[ShardEntry]:
         return self.splits[split]
 
@@ -107,7 +116,7 @@ def dataset_doc(config: dict, seed: int, attrs: dict, splits: dict[str, list[Sha
     """The document ``finalize`` writes: tool, version, format version, conventions, the
     resolved config, seed, shard attributes, and per split its scene count and shards."""
     return {"tool": "tsel-data", "version": __version__, "format_version": FORMAT_VERSION,
-            "conventions": conventions(attrs["format"]), "config": config, "seed": seed, **attrs,
+            "conventions": conventions(attrs["format"], attrs.get("receivers") or ()), "config": config, "seed": seed, **attrs,
             "splits": {s: {"scenes": sum(e.scenes for e in entries), "shards": [e.to_json() for e in entries]}
                        for s, entries in splits.items()}}
 
@@ -138,7 +147,8 @@ def load_dataset_doc(root: str) -> DatasetDoc:
         return DatasetDoc(path=path, fs=int(doc.get("fs", 24000)), label_hop=float(doc.get("label_hop", 0.1)),
                           format=str(doc.get("format", "")), channel_names=list(doc.get("channel_names") or []),
                           config=doc.get("config") if isinstance(doc.get("config"), dict) else {},
-                          splits=splits, counts=counts, raw=doc)
+                          splits=splits, counts=counts, raw=doc,
+                          receivers={str(k): list(v) for k, v in (doc.get("receivers") or {}).items()})
     except (KeyError, TypeError, ValueError, AttributeError) as e:
         raise DatasetError(f"{path}: incomplete or damaged ({type(e).__name__}: {e}); rerun "
                            f"`tsel finalize {root}`") from None

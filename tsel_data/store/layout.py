@@ -24,6 +24,8 @@ DEMO_CORPUS_DIR = "demo-corpus"
 DEMO_BANK_FILE = "demo-bank.h5"
 LOCK_FILE = ".tsel.lock"
 SEAL_SUFFIX = ".seal.json"
+NOISE_GROUP = "noise"  # HDF5 group of a shard's unlabelled noise: noise/KIND/{snr_db, level_dbfs}
+RECEIVERS_GROUP = "receivers"  # HDF5 group of a shard's further receivers: receivers/NAME/{audio, mic_positions}
 
 
 def shard_names(split: str, shard: int) -> tuple[str, str]:

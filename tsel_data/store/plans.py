@@ -199,6 +199,8 @@ def unfinished_doc(layout: Layout) -> DatasetDoc:
     return DatasetDoc(path=layout.config_file, fs=fs, label_hop=hop, format=fmt,
                       channel_names=_channel_names(cfg, fmt), config=cfg, splits=splits,
                       counts={s: sum(e.scenes for e in v) for s, v in splits.items()},
+                      receivers={r: list(receiver(r).channels(n=len((cfg.get("array") or {}).get("capsules") or ())))
+                                 for r in (cfg.get("scene") or {}).get("receivers") or () if canonical(r)},
                       raw={"seed": cfg.get("seed", 0), "config": cfg}, finished=False, planned=counts,
                       shards_planned=len(tasks))
 

@@ -24,7 +24,7 @@ from ..h5str import as_str
 from ..choices import AudioCoding
 from .codings import coding_of, decode
 from .dataset import DatasetDoc, load_dataset_doc
-from .layout import Layout
+from .layout import RECEIVERS_GROUP, Layout
 from .plans import has_plan, unfinished_doc
 from .records import LABEL_KEYS, SceneRecord
 from .scene import Scene
@@ -63,7 +63,8 @@ class SceneDataset:
     records without touching audio. Negative indices count from the end.
     """
 
-    def __init__(self, root: str, split: str, *, load_records: bool = True, unfinished: bool = False):
+    def __init__(self, root: str, split: str, *, load_records: bool = True, unfinished: bool = False,
+                 receiver: str | None = None):
         self.root = os.fspath(root)
         self.split = split
         self.load_records = load_records
@@ -85,6 +86,14 @@ class SceneDataset:
         self.label_hop = self.doc.label_hop
         self.format = self.doc.format
         self.channel_names = list(self.doc.channel_names)
+        # a dataset heard by several receivers: whose audio ``audio`` is (default the first)
+        self._group = ""
+        if receiver is not None and receiver != self.doc.format:
+            if receiver not in self.doc.receivers:
+                have = ", ".join(self.doc.receiver_names())
+                raise DatasetError(f"{self.root}: no receiver {receiver!r} in the dataset; it holds {have}")
+            self.format, self.channel_names = receiver, list(self.doc.receivers[receiver])
+            self._group = f"{RECEIVERS_GROUP}/{receiver}/"
         self._reset_handles()
 
     @property
@@ -167,11 +176,11 @@ class SceneDataset:
             lab = f["labels"]
             m = _ShardMeta(
                 labels={key: lab[key][()] for key in (*LABEL_KEYS, "active")},
-                mics=f["mic_positions"][()].astype(np.float32), queries=list(f["query"].asstr()[()]),
-                ids=list(f["scene_id"].asstr()[()]), audio=f["audio"], coding=coding_of(f["audio"]),
-                raw_chunks=_raw_chunks(f["audio"]),
+                mics=f[self._group + "mic_positions"][()].astype(np.float32), queries=list(f["query"].asstr()[()]),
+                ids=list(f["scene_id"].asstr()[()]), audio=f[self._group + "audio"],
+                coding=coding_of(f[self._group + "audio"]), raw_chunks=_raw_chunks(f[self._group + "audio"]),
                 fs=int(f.attrs.get("fs", self.fs)), label_hop=float(f.attrs.get("label_hop", self.label_hop)),
-                format=as_str(f.attrs.get("format"), self.format),
+                format=self.format if self._group else as_str(f.attrs.get("format"), self.format),
                 query_columns={k: list(f[k].asstr()[()]) for k in ("query_type", "query_relation", "pairing")}
                 if "query_type" in f else None)
             self._check_pair(k, m.ids)
@@ -387,6 +396,10 @@ def open_dataset(root: str, split: str = "train", **kwargs) -> SceneDataset:
         the shards finished so far, in index order (``ds.doc.finished`` is False;
         ``Scene.index`` is the scene's index in the split, ``ds.position_of(index)``
         finds it). Trainers should read finished datasets only.
+    receiver : str, keyword
+        For a dataset heard by several receivers (``scene.receivers``): whose audio,
+        channel names and ``mic_positions`` scenes carry (default the first,
+        ``dataset.json``'s ``format``); labels are the same for all.
 
     Returns
     -------

@@ -157,6 +157,7 @@ class SourceRecord(_JsonMapping):
     level_dbfs: float | None = None
     pairing: str | None = None
     caption_similarity: float | None = None
+    power_db: float | None = None
 
     def to_json(self) -> dict:
         d = {"role": self.role, "clip_id": self.clip_id, "audio": self.audio, "captions": list(self.captions),
@@ -167,6 +168,8 @@ class SourceRecord(_JsonMapping):
         if self.pairing is not None:  # extended queries only: default records keep format 1's bytes
             d["pairing"] = self.pairing
             d["caption_similarity"] = self.caption_similarity
+        if self.power_db is not None:  # levels that follow distance only
+            d["power_db"] = self.power_db
         return d
 
     @classmethod
@@ -180,11 +183,42 @@ class SourceRecord(_JsonMapping):
                    azimuth=d.get("azimuth") or [], elevation=d.get("elevation") or [],
                    distance=d.get("distance") or [], active=d.get("active") or [], tir_db=d.get("tir_db"),
                    gain_db=d.get("gain_db"), level_dbfs=d.get("level_dbfs"), pairing=d.get("pairing"),
-                   caption_similarity=d.get("caption_similarity"))
+                   caption_similarity=d.get("caption_similarity"), power_db=d.get("power_db"))
 
     def labels(self, key: str) -> np.ndarray:
         """One label row (``azimuth``, ``elevation`` or ``distance``) as float64 [F], NaN for null."""
         return label_array(getattr(self, key))
+
+
+@dataclass(frozen=True)
+class NoiseRecord(_JsonMapping):
+    """One unlabelled part of a scene (``[noise]``): ``kind`` (``ambience``, ``diffuse``,
+    ``babble``, ``sensor``), ``snr_db`` against the target's omni energy over the scene
+    (None for sensor noise set in dBFS), ``level_dbfs`` (RMS of its level channels in the
+    mixture), and what it is: ``file`` and ``offset`` (samples) of an ambience recording,
+    ``spectrum`` of diffuse noise, ``clips`` [[audio, offset s]] and ``directions``
+    [[azimuth, elevation]] of babble."""
+
+    kind: str
+    snr_db: float | None = None
+    level_dbfs: float | None = None
+    file: str | None = None
+    offset: int | None = None
+    spectrum: str | None = None
+    clips: list | None = None
+    directions: list | None = None
+
+    def to_json(self) -> dict:
+        d = {"kind": self.kind, "snr_db": self.snr_db, "level_dbfs": self.level_dbfs}
+        for key in ("file", "offset", "spectrum", "clips", "directions"):
+            if getattr(self, key) is not None:
+                d[key] = getattr(self, key)
+        return d
+
+    @classmethod
+    def from_json(cls, d: dict) -> "NoiseRecord":
+        return cls(d.get("kind", ""), d.get("snr_db"), d.get("level_dbfs"), d.get("file"), d.get("offset"),
+                   d.get("spectrum"), d.get("clips"), d.get("directions"))
 
 
 @dataclass(frozen=True)
@@ -212,7 +246,9 @@ class SceneRecord(_JsonMapping):
 
     The query fields (docs/queries.md) are written only by datasets with extended queries
     (``query_wanted`` is then set); other records read as ``query_type = "caption"``,
-    ``pairing = "random"``, so every record answers them.
+    ``pairing = "random"``, so every record answers them. ``receivers``: the further
+    receivers of a dataset heard by several (``scene.receivers``), each an ArrayRecord
+    (same centre and yaw as ``array``).
     """
 
     scene_id: str
@@ -233,6 +269,8 @@ class SceneRecord(_JsonMapping):
     query_alternatives: list | None = None
     pairing: str = "random"
     query_wanted: str | None = None
+    receivers: tuple = ()  # ArrayRecords of further receivers heard in the same pass
+    noise: tuple = ()  # NoiseRecords: what else the scene holds, unlabelled
 
     @property
     def target(self) -> SourceRecord:
@@ -262,6 +300,10 @@ class SceneRecord(_JsonMapping):
                      query_alternatives=self.query_alternatives)
         d.update(motion=self.motion, rir_method=self.rir_method, room=self.room.to_json(), array=self.array.to_json(),
                  sources=[s.to_json() for s in self.sources], levels=self.levels.to_json())
+        if self.receivers:  # only with scene.receivers: other records keep format 1's bytes
+            d["receivers"] = [r.to_json() for r in self.receivers]
+        if self.noise:  # only with [noise]
+            d["noise"] = [n.to_json() for n in self.noise]
         return d
 
     @classmethod
@@ -275,4 +317,6 @@ class SceneRecord(_JsonMapping):
                    levels=LevelsRecord.from_json(d.get("levels")), query_type=d.get("query_type") or "caption",
                    query_relation=d.get("query_relation"), query_evidence=d.get("query_evidence"),
                    query_alternatives=d.get("query_alternatives"), pairing=d.get("pairing") or "random",
-                   query_wanted=d.get("query_wanted"))
+                   query_wanted=d.get("query_wanted"),
+                   receivers=tuple(ArrayRecord.from_json(r) for r in d.get("receivers") or ()),
+                   noise=tuple(NoiseRecord.from_json(n) for n in d.get("noise") or ()))

@@ -24,6 +24,8 @@ from .codings import create_audio, encode
 from .dataset import FORMAT_VERSION, ShardEntry
 from .integrity import FileSeal, Seal, sha256_file
 from .layout import Layout, shard_names
+from ..receivers import receiver
+from .layout import NOISE_GROUP, RECEIVERS_GROUP
 from .records import LABEL_KEYS, SceneRecord
 
 # Space a write needs beyond its bytes (HDF5 metadata, the file system), as a fraction:
@@ -39,7 +41,9 @@ class RenderedScene:
     source has no position). active: bool [S, F]. mic_positions: float32 [C, 3] array
     frame. record: the JSON description of the scene (docs/format.md). query_info: with
     extended queries, the shard's per-scene query columns (``query_type``,
-    ``query_relation``, ``query_margin``, ``pairing``); None otherwise.
+    ``query_relation``, ``query_margin``, ``pairing``); None otherwise. receivers: the
+    scene heard by further receivers at the same place (``scene.receivers``), stored under
+    ``receivers/NAME/`` of the shard; None or empty otherwise.
     """
 
     scene_id: str
@@ -52,6 +56,8 @@ class RenderedScene:
     mic_positions: np.ndarray
     record: SceneRecord | None = None
     query_info: dict | None = None
+    receivers: dict | None = None  # further receivers of one pass: name -> (audio [C, T], mic_positions [C, 3])
+    noise: dict | None = None  # [noise]: kind -> (snr_db or None, level_dbfs)
 
 
 # Per-scene query columns of a shard with extended queries (docs/format.md): name -> default.
@@ -98,6 +104,7 @@ class ShardWriter:
         self.records: list[str] = []  # each scene's record, as it appears in the JSON shard
         self.entry: ShardEntry | None = None
         self._h5 = self._audio = None
+        self._others: dict = {}  # further receivers' audio datasets
 
     def __enter__(self) -> "ShardWriter":
         try:
@@ -116,16 +123,24 @@ class ShardWriter:
         if i >= self.n:
             raise ValueError(f"shard {self.h5_rel} holds {self.n} scenes; got one more")
         try:
-            _check_space(os.path.dirname(self.h5_path), scene.audio.nbytes * (1 + SPACE_MARGIN), self.h5_rel)
+            others = scene.receivers or {}
+            size = scene.audio.nbytes + sum(a.nbytes for a, _ in others.values())
+            _check_space(os.path.dirname(self.h5_path), size * (1 + SPACE_MARGIN), self.h5_rel)
             if self._h5 is None:
                 self._h5 = h5py.File(self.tmp, "w", track_order=False, libver=("earliest", "v110"))
                 self._audio = create_audio(self._h5, self.coding, self.n, *scene.audio.shape)
+                for name, (audio, _) in others.items():
+                    g = self._h5.create_group(f"{RECEIVERS_GROUP}/{name}", track_order=False)
+                    self._others[name] = create_audio(g, self.coding, self.n, *audio.shape)
             self._audio[i] = encode(scene.audio, self.coding, int(self.attrs["fs"]))
+            for name, (audio, _) in others.items():
+                self._others[name][i] = encode(audio, self.coding, int(self.attrs["fs"]))
         except (OSError, RuntimeError) as e:  # h5py reports some HDF5 write failures as RuntimeError
             raise write_error(self.h5_rel, e, self.out_dir) from None
         # keep the record as the JSON text it becomes: a fraction of its Python objects' size
         self.records.append(json.dumps(jsonable(scene.record), ensure_ascii=False, indent=1).replace("\n", "\n  "))
-        self.kept.append(replace(scene, audio=None, record=None))
+        self.kept.append(replace(scene, audio=None, record=None,
+                                 receivers={k: (None, m) for k, (_, m) in (scene.receivers or {}).items()}))
 
     def __exit__(self, exc_type, exc, tb) -> None:
         try:
@@ -168,6 +183,18 @@ class ShardWriter:
                         h.create_dataset(key, data=np.array(vals, dtype=np.float32), track_times=False)
             h.create_dataset("mic_positions", data=np.stack([s.mic_positions for s in scenes]).astype(np.float32),
                              track_times=False)
+            kinds = sorted({k for s in scenes for k in (s.noise or {})})
+            for kind in kinds:  # only with [noise]: other shards keep their bytes
+                for col, key in ((0, "snr_db"), (1, "level_dbfs")):
+                    vals = [((s.noise or {}).get(kind) or (None, None))[col] for s in scenes]
+                    h.create_dataset(f"{NOISE_GROUP}/{kind}/{key}", data=np.array(
+                        [np.nan if v is None else v for v in vals], dtype=np.float32), track_times=False)
+            for name in self._others:  # each further receiver: its audio (written above) and capsules
+                g = h[f"{RECEIVERS_GROUP}/{name}"]
+                g.create_dataset("mic_positions", data=np.stack([s.receivers[name][1] for s in scenes])
+                                 .astype(np.float32), track_times=False)
+                g.attrs["format"] = name
+                g.attrs["channel_names"] = _attr(list(receiver(name).channels(n=g["mic_positions"].shape[1])))
             for k, v in sorted({"split": self.split, "shard": self.shard, **self.attrs}.items()):
                 h.attrs[k] = _attr(v)
             h.attrs["frames"] = scenes[0].azimuth.shape[1]
@@ -218,6 +245,8 @@ def _stack_padded(arrays, n_src, fill, dtype) -> np.ndarray:
 
 
 def _attr(v):
+    if isinstance(v, dict):  # HDF5 attributes hold no tables: the JSON text
+        return json.dumps(v, ensure_ascii=False)
     if isinstance(v, (list, tuple)):
         if all(isinstance(x, str) for x in v):
             return np.array(v, dtype=h5py.string_dtype("utf-8"))
