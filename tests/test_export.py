@@ -114,7 +114,7 @@ def test_exporting_into_an_export_of_something_else_is_refused(tmp_path, capsys)
     with pytest.raises(DatasetError) as e:
         export_dcase(str(b), str(out), splits=["test"], subtype="FLOAT")
     assert str(e.value) == (f"{out} holds an export of another dataset {a} (now {b}), format mic4 (now foa); adding "
-                            f"this one would mix them: export into another --out")
+                            f"this one would mix them: export into another --out, or pass --force to replace it")
     with pytest.raises(DatasetError, match=r"another WAV subtype FLOAT \(now PCM_16\)"):
         export_dcase(str(a), str(out), splits=["test"], subtype="PCM_16")
     from tsel_data.cli import main

@@ -3,6 +3,8 @@ sources, clips and gains, labels identical in each receiver's frame, each receiv
 audio in its own part of the shard, readable and checkable per receiver."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -127,3 +129,25 @@ def test_an_unknown_receiver_of_a_dataset_is_refused(made):
 
     with pytest.raises(DatasetError, match="it holds mic4, foa, tetra, respeaker-6"):
         open_dataset(made, "train", receiver="uma8")
+
+
+def test_an_export_holds_the_receiver_asked_for(made, tmp_path, capsys):
+    """`tsel export webdataset --receiver foa`: the foa audio, bit for bit, with its channel
+    names; the default is the first receiver; an unknown one is one line, exit 2."""
+    from tsel_data import open_dataset
+    from tsel_data.export import export
+    from tsel_data.export.webdataset import iter_members
+    from test_explain import one_line_error
+
+    for name, want in ((None, "mic4"), ("foa", "foa"), ("respeaker-6", "respeaker-6")):
+        out = tmp_path / f"wds-{name}"
+        export("webdataset", made, str(out), splits=["test"], card=False, **({"receiver": name} if name else {}))
+        ds = open_dataset(made, "test", receiver=want)
+        members = dict(iter_members(str(out / "test" / "test-000000.tar")))
+        for i in range(len(ds)):
+            s = ds[i]
+            np.testing.assert_array_equal(members[f"{s.scene_id}.audio.npy"], s.audio)
+            doc = json.loads(members[f"{s.scene_id}.json"])
+            assert doc["format"] == want and doc["channel_names"] == list(ds.channel_names)
+    line = one_line_error(capsys, "export", "webdataset", made, "--out", str(tmp_path / "x"), "--receiver", "em32")
+    assert "no receiver 'em32'" in line and "mic4, foa, tetra, respeaker-6" in line

@@ -6,13 +6,18 @@ own torch. Each item is a dict: ``audio`` float32 [C, T], ``azimuth``/``elevatio
 ``distance`` float32 [S, F], ``active`` bool [S, F], ``class_index`` int64 [F] (target,
 -1 where it has no position), ``gaussian`` float32 [F, 360] (target, σ = ``sigma``),
 ``accdoa`` float32 [S, F, 3], ``mic_positions`` float32 [C, 3], plus ``query``,
-``query_type``, ``query_relation`` (None for a caption), ``pairing`` (docs/queries.md),
-``scene_id`` and (``with_record=True``) ``record``.
+``query_type``, ``query_relation`` (``""`` for a caption, so PyTorch's default collate
+takes every item), ``pairing`` (docs/queries.md), ``scene_id`` and
+(``with_record=True``) ``record``.
 
 HDF5 files and clips are opened lazily in each worker (see :mod:`tsel_data.store.reader`
 and :mod:`tsel_data.onthefly`), so ``DataLoader(..., num_workers=N)`` works with fork and
 spawn alike. Scenes of one split share C, T and F but not S: batch with :func:`collate`
 when splits mix scenarios with different source counts, or when items hold records.
+
+:class:`StreamingDataset` streams a WebDataset export (``tsel export webdataset``) instead:
+an ``IterableDataset`` with a shuffle buffer, split between workers and ranks, epoch by
+epoch (:mod:`tsel_data.streaming`).
 """
 from __future__ import annotations
 
@@ -29,6 +34,7 @@ import numpy as np
 from .executors import prepare_worker
 from .labels import scene_targets
 from .store.reader import open_dataset
+from .streaming import SceneStream
 
 QUERIES = ("dataset", "any")
 
@@ -88,33 +94,106 @@ class Dataset(torch.utils.data.Dataset):
             s = self.scenes.get(i, epoch=epoch)
         else:
             s = self.scenes[i]
-        enc = scene_targets(s, self.sigma)
-        item = {
-            "audio": torch.from_numpy(s.audio),
-            "azimuth": torch.from_numpy(s.azimuth),
-            "elevation": torch.from_numpy(s.elevation),
-            "distance": torch.from_numpy(s.distance),
-            "active": torch.from_numpy(s.active),
-            "class_index": torch.from_numpy(enc["class_index"]),
-            "gaussian": torch.from_numpy(enc["gaussian"]),
-            "accdoa": torch.from_numpy(enc["accdoa"]),
-            "mic_positions": torch.from_numpy(s.mic_positions),
-            "query": self._query(s, epoch, i),
-            "query_type": s.query_type,
-            "query_relation": s.query_relation,
-            "pairing": s.pairing,
-            "scene_id": s.scene_id,
-        }
-        if self.with_record:
-            item["record"] = s.record
+        item = scene_item(s, self.sigma, self._query(s, epoch, i), self.with_record)
         return self.transform(item) if self.transform else item
 
     def _query(self, scene, epoch: int, i: int) -> str:
-        if self.query == "dataset" or scene.record is None:
-            return scene.query
-        pool = scene.record.query_pool(getattr(self.scenes, "caption_similarity", 0.5))
-        rng = np.random.default_rng([getattr(self.scenes, "seed", 0), epoch, i, 1])
-        return pool[int(rng.integers(len(pool)))]
+        return pick_query(scene, self.query, getattr(self.scenes, "seed", 0), epoch, i,
+                          getattr(self.scenes, "caption_similarity", 0.5))
+
+
+def pick_query(scene, how: str, seed: int, epoch: int, i: int, caption_similarity: float = 0.5) -> str:
+    """The query an item carries: the scene's (``how="dataset"``), or one of its equally
+    true queries drawn per (seed, epoch, index) (``"any"``; see :class:`Dataset`)."""
+    if how == "dataset" or scene.record is None:
+        return scene.query
+    pool = scene.record.query_pool(caption_similarity)
+    rng = np.random.default_rng([seed, epoch, i, 1])
+    return pool[int(rng.integers(len(pool)))]
+
+
+def scene_item(s, sigma: float, query: str, with_record: bool = False) -> dict:
+    """A scene as a dict of tensors and strings (the module docstring lists the keys)."""
+    enc = scene_targets(s, sigma)
+    item = {
+        "audio": torch.from_numpy(s.audio),
+        "azimuth": torch.from_numpy(s.azimuth),
+        "elevation": torch.from_numpy(s.elevation),
+        "distance": torch.from_numpy(s.distance),
+        "active": torch.from_numpy(s.active),
+        "class_index": torch.from_numpy(enc["class_index"]),
+        "gaussian": torch.from_numpy(enc["gaussian"]),
+        "accdoa": torch.from_numpy(enc["accdoa"]),
+        "mic_positions": torch.from_numpy(s.mic_positions),
+        "query": query,
+        "query_type": s.query_type,
+        "query_relation": s.query_relation or "",  # default_collate takes strings, not None
+        "pairing": s.pairing,
+        "scene_id": s.scene_id,
+    }
+    if with_record:
+        item["record"] = s.record
+    return item
+
+
+class StreamingDataset(torch.utils.data.IterableDataset):
+    """The scenes of a WebDataset export as an ``IterableDataset``: items as
+    :class:`Dataset`'s, read sequentially from tar shards.
+
+    Parameters
+    ----------
+    source : str or list of str
+        The export folder (``tsel export webdataset --out``), or tar files.
+    split : str
+    shuffle : int
+        Scenes in each worker's shuffle buffer (0: the shards' order).
+    seed : int
+        Seeds the shard order, the buffers and ``query="any"``.
+    rank, world_size : int, optional
+        This process among distributed ranks (default: ``torch.distributed``'s when it is
+        initialized, else 0 of 1). Each rank reads its own shards (or, with fewer shards
+        than ranks times workers, every ``R·W``-th scene): give every rank as many shards
+        (``--shard-size``) so they see as many scenes.
+    sigma, transform, query, with_record
+        As :class:`Dataset`.
+
+    ``set_epoch(e)`` before each epoch draws epoch *e*'s shard order and buffer (with
+    ``persistent_workers=True`` the workers keep the epoch they started with).
+    """
+
+    def __init__(self, source, split: str = "train", shuffle: int = 0, seed: int = 0, sigma: float = 5.0,
+                 transform=None, query: str = "dataset", with_record: bool = False, rank: int | None = None,
+                 world_size: int | None = None):
+        if query not in QUERIES:
+            raise ValueError(f"query must be one of {QUERIES}, got {query!r}")
+        self.stream = SceneStream(source, split, shuffle=shuffle, seed=seed, with_record=with_record or query == "any")
+        self.sigma, self.transform, self.query, self.with_record = sigma, transform, query, with_record
+        self.rank, self.world_size = rank, world_size
+
+    def set_epoch(self, epoch: int) -> None:
+        self.stream.set_epoch(epoch)
+
+    def __len__(self) -> int:
+        return len(self.stream)
+
+    def _place(self) -> tuple[int, int, int, int]:
+        info = torch.utils.data.get_worker_info()
+        worker, workers = (info.id, info.num_workers) if info is not None else (0, 1)
+        rank, world = self.rank, self.world_size
+        if rank is None or world is None:
+            dist = torch.distributed
+            on = dist.is_available() and dist.is_initialized()
+            rank = (dist.get_rank() if on else 0) if rank is None else rank
+            world = (dist.get_world_size() if on else 1) if world is None else world
+        return worker, workers, rank, world
+
+    def __iter__(self):
+        worker, workers, rank, world = self._place()
+        epoch = self.stream.epoch
+        for s in self.stream.iter(worker, workers, rank, world):
+            q = pick_query(s, self.query, self.stream.seed, epoch, s.index)
+            item = scene_item(s, self.sigma, q, self.with_record)
+            yield self.transform(item) if self.transform else item
 
 
 def collate(items: list[dict]) -> dict:
@@ -144,4 +223,4 @@ def worker_init_fn(_worker_id: int) -> None:
     torch.set_num_threads(1)
 
 
-__all__ = ["Dataset", "collate", "pad_sources", "worker_init_fn"]
+__all__ = ["Dataset", "StreamingDataset", "collate", "pad_sources", "pick_query", "scene_item", "worker_init_fn"]

@@ -20,7 +20,9 @@ SHOW = 20  # problems printed per kind; the rest are counted (--json lists them 
 @click.option("--no-plan", is_flag=True, help="With a config: skip sampling every scene in memory.")
 @click.option("--no-audio", is_flag=True, help="With DIR: skip checking every audio sample is finite.")
 @click.option("--json", "as_json", is_flag=True, help="Print the full report as JSON.")
-def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, **config_opts):
+@click.option("--release", type=click.Path(file_okay=False),
+              help="With DIR: hold it against this recipe release, scene by scene (audio, labels, record).")
+def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, release, **config_opts):
     """Check a config and everything it reads before rendering (`tsel check --preset/--config ...`),
     or verify a finished dataset (`tsel check DIR`: shards, sha256, HDF5 vs JSON, counts).
 
@@ -32,7 +34,15 @@ def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, **confi
 
     if dataset_dir and (config_opts.get("preset") or config_opts.get("config_path")):
         raise TselError("give either a dataset folder or --preset/--config, not both")
-    if dataset_dir:
+    if release and not dataset_dir:
+        raise TselError("--release holds a dataset against a release: give the dataset folder, `tsel check DIR "
+                        "--release REL`")
+    summarise = None
+    if release:
+        from ..store.release import check_against_release, release_summary_lines
+
+        rep, summarise = check_against_release(dataset_dir, release), release_summary_lines
+    elif dataset_dir:
         rep = check_dataset(dataset_dir, workers=worker_count(workers), audio=not no_audio)
     else:
         cfg = load(**config_opts, validate=False)  # as `tsel generate`, but every problem is collected
@@ -40,7 +50,7 @@ def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, **confi
     if as_json:
         click.echo(json.dumps(rep.to_dict(), indent=1, ensure_ascii=False))
     else:
-        for line in rep.summary_lines():
+        for line in (summarise or type(rep).summary_lines)(rep):
             click.echo(line)
         _print("warning", rep.warnings)
         _print("error", rep.messages())

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import click
 
+from ..choices import MissingClipPolicy, values
 from ..errors import TselError
 from .options import config_options, executor_options, load, roots_options, worker_count
 
@@ -16,12 +17,19 @@ from .options import config_options, executor_options, load, roots_options, work
               "scenes it has stay byte-identical.")
 @click.option("--force", is_flag=True, help="Write into a folder that holds other files (not a tsel-data dataset).")
 @click.option("--quiet", is_flag=True, help="No progress bars.")
+@click.option("--from", "release", type=click.Path(file_okay=False), help="Rebuild the recipe release REL (`tsel "
+              "export recipes`) from --corpus-dir, reporting scene by scene (rebuild.json).")
+@click.option("--missing", type=click.Choice(values(MissingClipPolicy)), default="skip", show_default=True,
+              help="With --from: leave out scenes whose clip is missing, or substitute one (recorded).")
 @executor_options
 def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, resume, grow, force,
-                 quiet, executor, scheduler):
+                 quiet, release, missing, executor, scheduler):
     """Plan, render and finalize a dataset in one go."""
     from ..pipeline import generate
 
+    if release:
+        return _rebuild(release, out_dir, corpus_dir, bank, missing, workers, quiet, force, executor, scheduler,
+                        preset or config_path or splits or seed is not None or overrides or grow)
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
     s = generate(cfg, out_dir, workers=worker_count(workers), resume=resume, progress=not quiet, executor=executor,
                  scheduler=scheduler, grow=grow, force=force, report=_report)
@@ -33,6 +41,23 @@ def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides,
                f"{s['bytes'] / 1e6:.1f} MB on disk, {s['bad_clips']} bad clips skipped"
                + (" (see bad_clips.jsonl)" if s["bad_clips"] else "")
                + (f", {s['missing_clips']} clips missing (see missing_clips.json)" if s["missing_clips"] else ""))
+
+
+def _rebuild(release, out_dir, corpus_dir, bank, missing, workers, quiet, force, executor, scheduler, planned) -> None:
+    """``tsel generate --from REL``: the release's plan, rendered here, held against it."""
+    from ..rebuild import rebuild
+
+    if planned:
+        raise TselError("--from takes its config and plan from the release: drop --preset, --config, --split, "
+                        "--seed, --set and --grow")
+    rep = rebuild(release, out_dir, corpus_dir, bank, missing, workers=worker_count(workers), progress=not quiet,
+                  force=force, executor=executor, scheduler=scheduler)
+    for split, c in rep["splits"].items():
+        click.echo(f"{split}: " + ", ".join(f"{v} {k}" for k, v in c.items()))
+    for o in [o for o in rep["scenes"] if o["status"] != "identical"][:10]:
+        click.echo(f"  {o['scene_id']}: {o['status']}" + (f" ({', '.join(o['parts'])})" if o["parts"] else "")
+                   + (f": {o['why']}" if o["why"] else ""))
+    click.echo(f"rebuilt {out_dir} from {release}; scene by scene: {out_dir}/rebuild.json")
 
 
 def _report(line: str) -> None:

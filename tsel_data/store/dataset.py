@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from ..version import __version__
 from ..errors import DatasetError
@@ -99,6 +99,19 @@ class DatasetDoc:
     def receiver_names(self) -> list[str]:
         """Every receiver whose audio the dataset holds: ``format`` first."""
         return [self.format, *self.receivers]
+
+    def heard_by(self, name: str | None) -> "DatasetDoc":
+        """This document as seen by receiver ``name`` of a several-receiver dataset: its
+        ``format`` and ``channel_names`` are that receiver's, the others in ``receivers``
+        (``name`` None or ``format``: this one)."""
+        if name is None or name == self.format:
+            return self
+        if name not in self.receivers:
+            raise DatasetError(f"{self.path}: no receiver {name!r} in the dataset; it holds "
+                               f"{', '.join(self.receiver_names())}")
+        others = {self.format: list(self.channel_names), **{k: v for k, v in self.receivers.items() if k != name}}
+        return replace(self, format=name, channel_names=list(self.receivers[name]), receivers=others)
+
     def shards(self, split: str) -> list[ShardEntry]:
         return self.splits[split]
 

@@ -1,0 +1,243 @@
+"""Every export format round-trips one dataset through the real package that reads it —
+webdataset, datasets, pandas/pyarrow, lhotse — with every channel and the audio bit-equal
+to the reader's, in each audio coding (float32, int16, flac), and labels and queries equal;
+the streaming reader gives the reader's scenes, each exactly once per epoch whatever the
+workers and ranks. Tests of a package that is not installed are skipped."""
+import glob
+import io
+import json
+import os
+import tempfile
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from datasetfixture import make_scene
+from tsel_data.atomic import write_json
+from tsel_data.export import export
+from tsel_data.reader import open_dataset
+from tsel_data.store.dataset import dataset_doc, shard_attrs
+from tsel_data.store.writer import write_shard
+from tsel_data.streaming import SceneStream
+
+# datasets caches what it loads under HF_HOME: a folder of this run, never the network
+os.environ.setdefault("HF_HOME", tempfile.mkdtemp(prefix="tsel-test-hf-"))
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+
+TWO_SCENES = "1.1MB"  # 4 channels, 2 s at 16 kHz: 512 kB of float32 per scene
+
+
+def write_dataset(root, coding="float32", fmt="mic4", splits=None, seed=3, moving=(), additive=()):
+    """A small dataset through the real shard writer, in ``coding`` (datasetfixture's scenes)."""
+    splits = splits or {"train": 3, "test": 2}
+    rng = np.random.default_rng(seed)
+    attrs = shard_attrs(16000, 0.1, fmt, coding)
+    entries = {}
+    for split, n in splits.items():
+        scenes = [make_scene(split, i, fmt=fmt, rng=rng, moving=f"{split}-{i:06d}" in moving,
+                             additive=f"{split}-{i:06d}" in additive) for i in range(n)]
+        entries[split] = [write_shard(str(root), split, k, scenes[j:j + 2], attrs) for k, j in enumerate(range(0, n, 2))]
+    config = {"audio": {"fs": 16000, "duration": 2.0, "label_hop": 0.1}, "splits": {s: {"count": n} for s, n in
+                                                                                      splits.items()}}
+    write_json(os.path.join(root, "dataset.json"), dataset_doc(config, seed, attrs, entries))
+    return str(root)
+
+
+@pytest.fixture(scope="module")
+def datasets_(tmp_path_factory):
+    """float32 mic4 (a moving target, an additive source), int16 em32 (32 channels), flac foa."""
+    base = tmp_path_factory.mktemp("formats")
+    return {"float32": write_dataset(base / "f32", moving={"train-000001"}, additive={"train-000002"}),
+            "int16": write_dataset(base / "i16", "int16", "em32", {"train": 2, "test": 1}),
+            "flac": write_dataset(base / "flac", "flac", "foa", {"train": 2, "test": 1})}
+
+
+@pytest.fixture(scope="module")
+def wds_out(datasets_, tmp_path_factory):
+    out = {}
+    for coding, root in datasets_.items():
+        out[coding] = str(tmp_path_factory.mktemp(f"wds-{coding}"))
+        export("webdataset", root, out[coding], shard_size=TWO_SCENES, card=False)
+    return out
+
+
+def reference(root, split):
+    with open_dataset(root, split) as ds:
+        return {s.scene_id: s for s in ds}
+
+
+def assert_same_labels(a, b):
+    assert (a.scene_id, a.query, a.query_type, a.query_relation, a.pairing) == \
+        (b.scene_id, b.query, b.query_type, b.query_relation, b.pairing)
+    for key in ("azimuth", "elevation", "distance", "active", "mic_positions"):
+        x, y = getattr(a, key), getattr(b, key)
+        assert x.dtype == y.dtype and x.shape == y.shape, key
+        np.testing.assert_array_equal(x, y, err_msg=key)
+
+
+@pytest.mark.parametrize("coding", ["float32", "int16", "flac"])
+def test_streamed_scenes_are_the_readers(datasets_, wds_out, coding):
+    for split in ("train", "test"):
+        ref = reference(datasets_[coding], split)
+        got = list(SceneStream(wds_out[coding], split))
+        assert [s.scene_id for s in got] == list(ref)
+        for s in got:
+            r = ref[s.scene_id]
+            assert s.audio.dtype == np.float32 and s.audio.shape == r.audio.shape
+            np.testing.assert_array_equal(s.audio, r.audio)  # bit for bit, every channel
+            assert_same_labels(s, r)
+            assert s.record.to_json() == r.record.to_json() and s.index == r.index
+    if coding == "int16":
+        assert got[0].audio.shape[0] == 32
+
+
+def test_shards_are_sized_by_bytes_and_indexed(wds_out):
+    index = json.loads(open(os.path.join(wds_out["float32"], "index.json")).read())
+    shards = index["splits"]["train"]["shards"]
+    assert [s["scenes"] for s in shards] == [2, 1] and all(s["bytes"] <= 1_100_000 for s in shards)
+    assert [os.path.getsize(os.path.join(wds_out["float32"], s["file"])) for s in shards] == [s["bytes"] for s in shards]
+    assert index["audio_coding"] == "float32" and index["members"]["audio"] == "audio.npy"
+
+
+def test_the_webdataset_package_reads_every_channel(datasets_, wds_out):
+    wds = pytest.importorskip("webdataset")
+    ref = reference(datasets_["int16"], "train")
+    urls = sorted(glob.glob(os.path.join(wds_out["int16"], "train", "*.tar")))
+    samples = list(wds.WebDataset(urls, shardshuffle=False).decode())
+    assert [s["__key__"] for s in samples] == list(ref)
+    for s in samples:
+        r = ref[s["__key__"]]
+        meta = s["json"]
+        audio = s["audio.npy"].astype(np.float32) * np.float32(meta["audio_scale"])  # int16 as stored
+        assert s["audio.npy"].dtype == np.int16 and audio.shape == (32, 32000)
+        np.testing.assert_array_equal(audio, r.audio)
+        assert meta["query"] == r.query and meta["channel_names"] == open_dataset(datasets_["int16"]).channel_names
+        np.testing.assert_array_equal(np.array(meta["azimuth"], dtype=np.float32), r.azimuth)
+        assert s["record.json"]["scene_id"] == r.scene_id
+
+
+def test_datasets_loads_the_webdataset_export_with_every_channel(datasets_, wds_out):
+    hfds = pytest.importorskip("datasets")
+    ref = reference(datasets_["float32"], "train")
+    ds = hfds.load_dataset(wds_out["float32"], split="train")  # the card is not needed: the tars say it all
+    assert len(ds) == 3
+    for row in ds.with_format("numpy"):
+        r = ref[row["__key__"]]
+        np.testing.assert_array_equal(np.asarray(row["audio.npy"], dtype=np.float32), r.audio)
+        assert row["json"]["query"] == r.query
+
+
+@pytest.fixture(scope="module")
+def hf_out(datasets_, tmp_path_factory):
+    pytest.importorskip("pyarrow")
+    out = {}
+    for coding in ("float32", "flac"):
+        out[coding] = str(tmp_path_factory.mktemp(f"hf-{coding}"))
+        export("hf", datasets_[coding], out[coding], shard_size=TWO_SCENES)
+    return out
+
+
+@pytest.mark.parametrize("coding", ["float32", "flac"])
+def test_datasets_loads_the_hf_layout_and_the_snippet_keeps_every_channel(datasets_, hf_out, coding):
+    hfds = pytest.importorskip("datasets")
+    ref = reference(datasets_[coding], "train")
+    ds = hfds.load_dataset(hf_out[coding], split="train")  # the card's configs: default = the audio shards
+    assert isinstance(ds.features["audio"], hfds.Audio)
+    rows = ds.cast_column("audio", hfds.Audio(decode=False))  # the snippet of docs/commands/export.md
+    assert len(rows) == len(ref) == len(glob.glob(os.path.join(hf_out[coding], "data", "train", "*.parquet"))) + 1
+    for row in rows:
+        r = ref[row["scene_id"]]
+        audio, fs = sf.read(io.BytesIO(row["audio"]["bytes"]), dtype="float32", always_2d=True)
+        assert fs == r.fs and audio.shape[1] == r.audio.shape[0] == 4
+        np.testing.assert_array_equal(audio.T, r.audio)
+        np.testing.assert_array_equal(np.array(row["azimuth"], dtype=np.float32), r.azimuth)
+        np.testing.assert_array_equal(np.array(row["active"]), r.active)
+        assert row["query"] == r.query and row["query_relation"] == r.query_relation
+
+
+def test_the_metadata_tables_follow_their_schema(datasets_, hf_out):
+    pd = pytest.importorskip("pandas")
+    hfds = pytest.importorskip("datasets")
+    from tsel_data.export.hf import SCENE_COLUMNS, SOURCE_COLUMNS
+
+    ref = reference(datasets_["float32"], "train")
+    scenes = pd.read_parquet(os.path.join(hf_out["float32"], "metadata", "train", "scenes.parquet"))
+    sources = pd.read_parquet(os.path.join(hf_out["float32"], "metadata", "train", "sources.parquet"))
+    assert list(scenes.columns) == [c for c, _ in SCENE_COLUMNS] and list(sources.columns) == [c for c, _ in
+                                                                                              SOURCE_COLUMNS]
+    assert list(scenes.scene_id) == list(ref) and len(sources) == sum(s.n_sources for s in ref.values())
+    for _, row in sources.iterrows():
+        r = ref[row.scene_id]
+        rec = r.record.sources[row.source]
+        assert (row.role, row.clip_id, list(row.captions), row.spatial) == (rec.role, rec.clip_id, rec.captions,
+                                                                            rec.spatial)
+        np.testing.assert_array_equal(row.azimuth.astype(np.float32), r.azimuth[row.source])
+    additive = sources[sources.spatial == "additive"]
+    assert len(additive) == 1 and np.isnan(additive.iloc[0].azimuth).all()
+    # the tables load through the card's configs, split by split, with the same types
+    for config in ("scenes", "sources"):
+        a = hfds.load_dataset(hf_out["float32"], config, split="train")
+        b = hfds.load_dataset(hf_out["float32"], config, split="test")
+        assert a.features == b.features
+
+
+def test_lhotse_loads_the_manifests_and_the_audio_is_ours(datasets_, tmp_path):
+    lhotse = pytest.importorskip("lhotse")
+    for coding in ("float32", "int16"):
+        out = tmp_path / coding
+        export("lhotse", datasets_[coding], str(out), card=False)
+        ref = reference(datasets_[coding], "train")
+        cuts = lhotse.CutSet.from_file(out / "tsel_cuts_train.jsonl.gz").with_recording_path_prefix(str(out))
+        recs = lhotse.RecordingSet.from_file(out / "tsel_recordings_train.jsonl.gz")
+        sups = lhotse.SupervisionSet.from_file(out / "tsel_supervisions_train.jsonl.gz")
+        assert len(recs) == len(ref) and len(sups) == sum(s.n_sources for s in ref.values())
+        for cut in cuts:
+            r = ref[cut.id]
+            np.testing.assert_array_equal(cut.load_audio(), r.audio)  # every channel, bit for bit
+            assert cut.recording.channel_ids == list(range(r.audio.shape[0]))
+            target = cut.supervisions[0]
+            assert target.text == r.query and target.custom["role"] == "target"
+            az = np.array([np.nan if v is None else v for v in target.custom["azimuth"]], dtype=np.float32)
+            np.testing.assert_array_equal(az, r.azimuth[0])
+            assert cut.custom["query"] == r.query and cut.custom["record"]["scene_id"] == r.scene_id
+
+
+def test_streaming_reads_each_scene_once_per_epoch_whatever_the_slots(datasets_, wds_out):
+    ids = list(reference(datasets_["float32"], "train"))
+    stream = SceneStream(wds_out["float32"], "train", shuffle=8, seed=4, with_record=False)
+    assert len(stream) == 3
+    orders = []
+    for epoch in range(3):
+        stream.set_epoch(epoch)
+        orders.append([s.scene_id for s in stream])
+        assert sorted(orders[-1]) == ids
+        # 2 ranks x 2 workers > 2 shards: every slot reads every shard and keeps every 4th scene
+        seen = [s.scene_id for rank in range(2) for w in range(2) for s in stream.iter(w, 2, rank, 2)]
+        assert sorted(seen) == ids
+        # 2 slots = 2 shards: a shard each
+        assert sorted(s.scene_id for w in range(2) for s in stream.iter(w, 2)) == ids
+    assert len({tuple(o) for o in orders}) > 1  # epochs shuffle differently
+    again = SceneStream(wds_out["float32"], "train", shuffle=8, seed=4, with_record=False)
+    again.set_epoch(2)
+    assert [s.scene_id for s in again] == orders[2]  # the same order for the same seed and epoch
+    files = sorted(glob.glob(os.path.join(wds_out["float32"], "train", "*.tar")))
+    assert [s.scene_id for s in SceneStream(files)] == ids  # tar files instead of the folder
+
+
+def test_torch_streaming_dataset_and_default_collate(datasets_, wds_out):
+    torch = pytest.importorskip("torch")
+    from tsel_data.torch import Dataset, StreamingDataset
+
+    ids = list(reference(datasets_["float32"], "test"))
+    # the map-style dataset's items batch with PyTorch's default collate (a caption query's relation is "")
+    batch = next(iter(torch.utils.data.DataLoader(Dataset(datasets_["float32"], "test"), batch_size=2)))
+    assert batch["audio"].shape == (2, 4, 32000) and batch["query_relation"] == ["", ""]
+    assert batch["scene_id"] == ids
+    stream = StreamingDataset(wds_out["float32"], "train", shuffle=4, seed=1)
+    loader = torch.utils.data.DataLoader(stream, batch_size=1, num_workers=2)
+    got = [b["scene_id"][0] for b in loader]
+    assert sorted(got) == list(reference(datasets_["float32"], "train"))
+    item = next(iter(StreamingDataset(wds_out["flac"], "test")))
+    ref = reference(datasets_["flac"], "test")[item["scene_id"]]
+    assert torch.equal(item["audio"], torch.from_numpy(ref.audio)) and item["gaussian"].shape == (20, 360)

@@ -1,0 +1,55 @@
+"""Exports of a finished dataset for other tools: one writer interface, one module per
+format, a name -> writer table (as lhotse's ``resolve_writer``).
+
+    from tsel_data.export import export
+    export("webdataset", "/data/tsel", "/data/tsel-wds", shard_size="500MB")
+
+Import order inside the package (each module imports only those above it; none imports
+this one)::
+
+    card        the dataset card (README.md with the Hub's YAML header)
+    base        Writer, WriterOption, ExportJob, run_export: walking splits, claiming
+                --out, per-split replace, the export's manifest
+    coding      a scene's audio as .npy, WAV and FLAC, bit-exact in the dataset's coding
+    dcase       the DCASE 2024 Task 3 layout
+    webdataset  WebDataset tar shards (writing and reading them)
+    hf          the Hugging Face layout: Parquet audio shards and metadata tables
+    lhotse      lhotse manifests (recordings, supervisions, cuts) and the audio files
+    recipes     recipe releases: the plan and per-scene checksums, no audio
+    cardonly    the card alone, for any dataset
+
+A new format is one module with a :class:`~tsel_data.export.base.Writer` subclass and one
+line in :data:`WRITERS`; ``tsel export NAME`` and its options follow from the writer.
+"""
+from __future__ import annotations
+
+from ..errors import TselError
+from .base import ExportResult, Writer, WriterOption, run_export
+from .cardonly import CardWriter
+from .dcase import DcaseWriter, dcase_rows, export_dcase, read_dcase_csv
+from .hf import HuggingFaceWriter
+from .lhotse import LhotseWriter
+from .recipes import RecipesWriter
+from .webdataset import WebDatasetWriter
+
+WRITERS: dict[str, type[Writer]] = {w.name: w for w in (DcaseWriter, WebDatasetWriter, HuggingFaceWriter,
+                                                        LhotseWriter, RecipesWriter, CardWriter)}
+
+
+def resolve_writer(name: str) -> type[Writer]:
+    """The writer class of an export format (TselError naming the formats there are)."""
+    try:
+        return WRITERS[name]
+    except KeyError:
+        raise TselError(f"no export format {name!r}; choose one of {', '.join(WRITERS)}") from None
+
+
+def export(name: str, root: str, out: str, splits=None, force: bool = False, progress: bool | None = False,
+           **options) -> ExportResult:
+    """Export the dataset ``root`` into ``out`` in format ``name`` (:data:`WRITERS`);
+    ``options`` are the writer's (``tsel export NAME --help`` lists them)."""
+    return run_export(resolve_writer(name)(**options), root, out, splits, force, progress)
+
+
+__all__ = ["WRITERS", "ExportResult", "Writer", "WriterOption", "dcase_rows", "export", "export_dcase",
+           "read_dcase_csv", "resolve_writer", "run_export"]

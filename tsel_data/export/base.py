@@ -1,0 +1,459 @@
+"""What every export shares: one writer interface, and the run that walks a dataset's
+splits into a folder the export owns.
+
+An export folder says whose it is in ``.tsel-export.json`` (:data:`MANIFEST_FILE`): the
+writer, the dataset (relative to the folder), the options that make two exports
+incompatible (:meth:`Writer.identity`) and every file it wrote, per split. So:
+
+- a folder that holds other files (no manifest), or an export of another writer,
+  dataset or identity, is refused in one line; ``force`` replaces it (an earlier
+  export's files are removed first; other files of the same names are written over);
+- exporting some splits into an export of the same kind replaces those splits (their
+  files not written again are removed) and keeps the others;
+- a file the export did not write is never written over (unless ``force``);
+- every file is claimed in ``.tsel-export.journal`` before it is written and written
+  under a temporary name, so an interrupted export is still known as ours: running it
+  again finishes it.
+
+A writer (one module per format, registered in ``tsel_data/export/__init__.py``)
+implements :meth:`Writer.write_split` and perhaps :meth:`Writer.finish`; everything else
+is here.
+"""
+from __future__ import annotations
+
+import json
+import os
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass, field
+from typing import Callable, ClassVar
+
+from ..atomic import atomic_output, write_json, write_text
+from ..errors import DatasetError, TselError
+from ..progress import bar
+from ..store.dataset import DatasetDoc, load_dataset_doc
+from ..stats import dataset_stats
+from ..store.reader import SceneDataset, open_dataset
+from ..version import __version__
+from .card import FIGURE_FILE, CARD_FILE, card_text, draw_figure
+
+MANIFEST_FILE = ".tsel-export.json"
+JOURNAL_FILE = ".tsel-export.journal"
+MANIFEST_VERSION = 1
+
+
+@dataclass(frozen=True)
+class WriterOption:
+    """One option of a writer, declared once: the command line (``--name-with-dashes``)
+    and the Python keyword (``name``) both follow. ``parse`` turns the command line's
+    text into the value (a TselError for a bad one); ``flag``: a boolean switch."""
+
+    name: str
+    help: str
+    default: object = None
+    choices: tuple = ()
+    parse: Callable | None = None
+    flag: bool = False
+
+
+def parse_size(text) -> int:
+    """``"500MB"``, ``"1GB"``, ``"2.5G"`` or a number of bytes -> bytes (powers of 1000)."""
+    if isinstance(text, (int, float)):
+        value = float(text)
+    else:
+        s = str(text).strip().upper().removesuffix("B")
+        scale = {"K": 1e3, "M": 1e6, "G": 1e9, "T": 1e12}.get(s[-1:], 1.0)
+        try:
+            value = float(s[:-1] if s[-1:] in "KMGT" else s) * scale
+        except ValueError:
+            value = -1.0
+    if value < 1:
+        raise TselError(f"size {text!r}: expected bytes or a number with KB, MB or GB, e.g. 500MB")
+    return int(value)
+
+
+@dataclass
+class SplitResult:
+    """What a writer wrote for one split: ``files`` (paths relative to the export, with
+    ``/``) and ``summary`` (plain JSON: the counts it reports, kept in the manifest)."""
+
+    files: list
+    summary: dict = field(default_factory=dict)
+
+
+class Writer:
+    """One export format. Subclasses set ``name`` (the registry key and the command),
+    ``summary`` (one line of help) and ``options``, and implement :meth:`write_split`."""
+
+    name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""
+    options: ClassVar[tuple] = ()
+    # every export carries a dataset card (README.md); the stats figure costs a second
+    COMMON: ClassVar[tuple] = (
+        WriterOption("card", "Write the dataset card (README.md).", True, flag=True),
+        WriterOption("figure", f"Draw the card's statistics figure ({FIGURE_FILE}).", False, flag=True),
+        WriterOption("receiver", "A dataset heard by several receivers (scene.receivers): export this one's audio "
+                     "(default: scene.format's)."),
+    )
+
+    def __init__(self, **options):
+        known = {o.name: o for o in (*self.options, *self.COMMON)}
+        unknown = sorted(set(options) - set(known))
+        if unknown:
+            raise TselError(f"export {self.name}: unknown option(s) {', '.join(unknown)}; it takes "
+                            f"{', '.join(known)}")
+        self.opts = {}
+        for name, o in known.items():
+            value = options.get(name, o.default)
+            if o.parse is not None and value is not None:
+                value = o.parse(value)
+            if o.choices and value not in o.choices:
+                raise TselError(f"export {self.name}: {name} {value!r} is not one of {', '.join(map(str, o.choices))}")
+            self.opts[name] = value
+
+    def identity(self, doc: DatasetDoc) -> dict:
+        """What two exports into one folder must share ({label: value}; labels read in
+        the refusal: "another format mic4 (now foa)")."""
+        return {"format": doc.format}
+
+    def check(self, job: "ExportJob") -> None:
+        """Refuse, before anything is written, a dataset this format cannot hold."""
+
+    def write_split(self, job: "ExportJob", split: str) -> SplitResult:
+        raise NotImplementedError
+
+    def finish(self, job: "ExportJob") -> list:
+        """Files that span the splits, written after them (paths relative to the export)."""
+        return job.write_card(self.card_yaml(job)) if self.opts["card"] else []
+
+    def card_yaml(self, job: "ExportJob") -> dict:
+        """Keys this format adds to the card's YAML header (the Hub's ``configs``)."""
+        return {}
+
+    def lines(self, result: "ExportResult") -> list:
+        """What the command prints."""
+        out = [f"{split}: {s.get('scenes', 0)} scenes, {len(result.files[split])} files" for split, s in
+               result.splits.items()]
+        return out + [f"{self.name} export in {result.out}"]
+
+
+@dataclass
+class ExportResult:
+    """``splits``: {split: summary} written now; ``files``: {split: files} and ``shared``."""
+
+    out: str
+    writer: str
+    splits: dict
+    files: dict
+    shared: list
+
+
+class ExportJob:
+    """One export run: the dataset, the folder, what the folder held before, and the only
+    way writers create files (:meth:`output` and friends), so nothing foreign is written over."""
+
+    def __init__(self, writer: Writer, root: str, out: str, splits: list, force: bool, progress):
+        self.writer, self.root, self.out, self.splits = writer, root, out, splits
+        self.force, self.progress = force, progress
+        self.receiver = writer.opts.get("receiver")
+        self.doc = load_dataset_doc(root).heard_by(self.receiver)  # format and channels: the exported receiver's
+        self.all_splits = list(self.doc.splits)
+        self.identity = {"kind": writer.name, "dataset": _portable(root, out), **writer.identity(self.doc)}
+        self.earlier = _earlier(out, writer, self.identity, root, force)
+        self._ours = _files_of(self.earlier) | _journal(out)
+        self._claimed: set = set()
+        self._journal = None
+        self._current = ""
+        self._shared: list | None = None
+        self.summaries = {s: v["summary"] for s, v in ((self.earlier or {}).get("splits") or {}).items()}
+        self._split_files = {s: list(v["files"]) for s, v in ((self.earlier or {}).get("splits") or {}).items()}
+
+    # --- reading ----------------------------------------------------------------------
+    def open(self, split: str) -> SceneDataset:
+        return open_dataset(self.root, split, receiver=self.receiver)
+
+    def bar(self, total: int, desc: str):
+        return bar(total, desc, "scene", self.progress)
+
+    def fold(self, split: str) -> int:
+        """A split's number in the dataset (1-based, in dataset.json order)."""
+        return self.all_splits.index(split) + 1
+
+    def exported_splits(self) -> list:
+        """The splits the export holds after this run, in dataset order."""
+        return [s for s in self.all_splits if s in self.summaries]
+
+    # --- writing ----------------------------------------------------------------------
+    def path(self, rel: str) -> str:
+        """The full path of ``rel``, claimed for this export: a DatasetError when a file
+        is there that no export of this kind wrote (unless ``force``)."""
+        full = os.path.join(self.out, rel)
+        if rel not in self._claimed:
+            if os.path.lexists(full) and rel not in self._ours and not self.force:
+                raise DatasetError(f"{full} exists and was not written by this export; move it away, export into "
+                                   f"another --out, or pass --force to write over it")
+            self._journal_line(rel)
+            self._claimed.add(rel)
+        os.makedirs(os.path.dirname(full), exist_ok=True)
+        return full
+
+    @contextmanager
+    def output(self, rel: str):
+        """``with job.output("train/x.tar") as tmp:`` write ``tmp``; it becomes the file
+        when the block ends (atomic_output)."""
+        full = self.path(rel)
+        with atomic_output(full, rel) as tmp:
+            yield tmp
+
+    def write_text(self, rel: str, text: str) -> str:
+        write_text(self.path(rel), text)
+        return rel
+
+    def write_json(self, rel: str, doc) -> str:
+        write_json(self.path(rel), doc)
+        return rel
+
+    def write_bytes(self, rel: str, data) -> str:
+        with self.output(rel) as tmp, open(tmp, "wb") as f:
+            f.write(data)
+        return rel
+
+    def write_card(self, yaml_extra: dict) -> list:
+        """README.md (and the figure, with the ``figure`` option): the dataset card."""
+        files = []
+        figure = None
+        stats = dataset_stats(self.root)
+        if self.writer.opts.get("figure"):
+            with self.output(FIGURE_FILE) as tmp:
+                draw_figure(self.root, tmp, stats)
+            figure = FIGURE_FILE
+            files.append(FIGURE_FILE)
+        text = card_text(self.root, self.doc, export=self.writer.name, splits=self.exported_splits(),
+                         yaml_extra=yaml_extra, figure=figure, stats=stats)
+        files.append(self.write_text(CARD_FILE, text))
+        return files
+
+    # --- the run ----------------------------------------------------------------------
+    def begin(self) -> None:
+        """Claim the folder: files an interrupted run left of splits it did not finish go
+        (they would be rewritten anyway), then the manifest says whose the folder is."""
+        os.makedirs(self.out, exist_ok=True)
+        _remove(self.out, _journal(self.out) - _files_of(self.earlier))
+        self._ours = _files_of(self.earlier)
+        self._write_manifest(complete=False)
+        self._journal = open(os.path.join(self.out, JOURNAL_FILE), "w", encoding="utf-8")
+
+    def write_split(self, split: str) -> SplitResult:
+        """The writer's files of ``split``; then its files an earlier export wrote that
+        this one did not are removed (the dataset has fewer scenes now, shards are sized
+        anew), and the manifest records the split."""
+        self._current = split
+        result = self.writer.write_split(self, split)
+        _remove(self.out, set(self._split_files.get(split, ())) - set(result.files))
+        self.summaries[split] = result.summary
+        self._split_files[split] = list(result.files)
+        self._current = ""  # the manifest is written at the end: until then the journal knows what is ours
+        return result
+
+    def end(self, shared: list) -> None:
+        """The manifest, complete; shared files an earlier export wrote and this one did not go."""
+        _remove(self.out, set((self.earlier or {}).get("files") or ()) - set(shared))
+        self._shared = list(shared)
+        self._write_manifest(complete=True)
+        self._journal.close()
+        os.remove(os.path.join(self.out, JOURNAL_FILE))
+
+    def _journal_line(self, rel: str) -> None:
+        if self._journal is not None:
+            self._journal.write(json.dumps([self._current, rel]) + "\n")
+            self._journal.flush()
+
+    def _manifest_splits(self) -> dict:
+        return {s: {"files": self._split_files[s], "summary": self.summaries[s]} for s in self.exported_splits()}
+
+    def _write_manifest(self, complete: bool) -> None:
+        shared = self._shared if self._shared is not None else list((self.earlier or {}).get("files") or ())
+        write_json(os.path.join(self.out, MANIFEST_FILE), {
+            "tool": "tsel-data", "version": __version__, "manifest_version": MANIFEST_VERSION,
+            "identity": self.identity, "complete": complete, "splits": self._manifest_splits(), "files": shared})
+
+
+class Shards:
+    """Files written one after another, each opened by ``opener(temporary path)`` (a tar
+    writer, a Parquet writer: anything with ``close()``). ``next(rel)`` closes the
+    current file under its final name and opens the next; leaving the ``with`` block by
+    an exception removes the unfinished file."""
+
+    def __init__(self, job: "ExportJob", opener):
+        self.job, self.opener = job, opener
+        self.current, self._stack = None, None
+
+    def next(self, rel: str):
+        self.close()
+        self._stack = ExitStack()
+        self.current = self.opener(self._stack.enter_context(self.job.output(rel)))
+        return self.current
+
+    def close(self) -> None:
+        if self._stack is not None:
+            self.current.close()
+            stack, self._stack, self.current = self._stack, None, None
+            stack.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        if exc[0] is None:
+            self.close()
+        elif self._stack is not None:
+            try:
+                self.current.close()
+            except Exception:  # the file is abandoned anyway; the first error is the one to show
+                pass
+            stack, self._stack, self.current = self._stack, None, None
+            stack.__exit__(*exc)
+        return False
+
+
+def run_export(writer: Writer, root: str, out: str, splits=None, force: bool = False,
+               progress: bool | None = False) -> ExportResult:
+    """Export ``splits`` (default: all) of the dataset ``root`` into ``out`` with ``writer``.
+
+    Raises DatasetError (one line) for an unknown split, an ``out`` that is the dataset
+    or inside it, a folder that holds other files or another export (without ``force``),
+    and whatever the writer refuses.
+    """
+    root, out = os.fspath(root), os.fspath(out)
+    doc = load_dataset_doc(root)
+    all_splits = list(doc.splits)
+    splits = list(dict.fromkeys(splits)) if splits else all_splits
+    for s in splits:
+        if s not in all_splits:
+            raise DatasetError(f"{root}: no split {s!r}; available splits: {', '.join(all_splits)}")
+    _check_places(root, out)
+    job = ExportJob(writer, root, out, splits, force, progress)
+    writer.check(job)
+    job.begin()
+    results = {split: job.write_split(split) for split in splits}
+    shared = writer.finish(job)
+    job.end(shared)
+    return ExportResult(out, writer.name, {s: r.summary for s, r in results.items()},
+                        {s: r.files for s, r in results.items()}, shared)
+
+
+def _check_places(root: str, out: str) -> None:
+    r, o = os.path.realpath(root), os.path.realpath(out)
+    if o == r:
+        raise DatasetError(f"--out {out} is the dataset itself; choose a new folder")
+    if o.startswith(r + os.sep):
+        raise DatasetError(f"--out {out} is inside the dataset {root}; choose a folder outside it")
+    if os.path.isfile(out):
+        raise DatasetError(f"--out {out} is a file; choose a folder")
+
+
+def _portable(root: str, out: str) -> str:
+    """The dataset as the manifest names it: relative to the export, so no folder of this
+    machine is written into a folder people publish."""
+    return os.path.relpath(os.path.realpath(root), os.path.realpath(out) if os.path.exists(out)
+                           else os.path.abspath(out)).replace(os.sep, "/")
+
+
+def read_manifest(out: str) -> dict | None:
+    """The manifest of the export in ``out`` (None when there is none; DatasetError when
+    it is unreadable)."""
+    path = os.path.join(out, MANIFEST_FILE)
+    if not os.path.isfile(path):
+        return None
+    try:
+        with open(path, encoding="utf-8") as f:
+            doc = json.load(f)
+        if not isinstance(doc, dict) or not isinstance(doc.get("identity"), dict):
+            raise ValueError("no identity")
+        return doc
+    except (OSError, ValueError) as e:
+        raise DatasetError(f"{path} is unreadable ({e}); export into a new --out, or pass --force to replace "
+                           f"the export") from None
+
+
+def _earlier(out: str, writer: Writer, identity: dict, root: str, force: bool) -> dict | None:
+    """The export already in ``out`` when this one may add to it; None for a new or empty
+    folder (or one ``force`` takes over). Refuses anything else."""
+    if not os.path.isdir(out):
+        return None
+    try:
+        doc = read_manifest(out)
+    except DatasetError:
+        if not force:
+            raise
+        doc = None
+    if doc is None:
+        held = sorted(n for n in os.listdir(out) if n != JOURNAL_FILE)
+        if held and not force:
+            raise DatasetError(f"{out} holds files that are not a tsel export ({', '.join(held[:3])}"
+                               f"{', ...' if len(held) > 3 else ''}); export into a new or empty --out, or pass "
+                               f"--force to write into it (files of the same names are replaced)")
+        return None
+    theirs = doc["identity"]
+    differ = []
+    for key, mine in identity.items():
+        other = theirs.get(key)
+        if key == "dataset":
+            same = os.path.realpath(os.path.join(out, str(other))) == os.path.realpath(root)
+            other, mine = os.path.normpath(os.path.join(os.path.abspath(out), str(other))), os.path.abspath(root)
+        else:
+            same = other == mine
+        if not same:
+            differ.append(f"{key} {other} (now {mine})")
+    if not differ:
+        return doc
+    if not force:
+        raise DatasetError(f"{out} holds an export of another {', '.join(differ)}; adding this one would mix them: "
+                           f"export into another --out, or pass --force to replace it")
+    _remove(out, _files_of(doc) | _journal(out) | {MANIFEST_FILE, JOURNAL_FILE})
+    return None
+
+
+def _files_of(doc: dict | None) -> set:
+    if not doc:
+        return set()
+    files = set(doc.get("files") or ())
+    for v in (doc.get("splits") or {}).values():
+        files |= set(v.get("files") or ())
+    return files
+
+
+def _journal_entries(out: str) -> list:
+    path = os.path.join(out, JOURNAL_FILE)
+    entries = []
+    try:
+        with open(path, encoding="utf-8") as f:
+            for line in f:
+                try:
+                    split, rel = json.loads(line)
+                    entries.append((split, rel))
+                except (ValueError, TypeError):
+                    continue  # a line cut by a kill: its file was never written
+    except OSError:
+        pass
+    return entries
+
+
+def _journal(out: str) -> set:
+    """The files an interrupted run claimed."""
+    return {rel for _, rel in _journal_entries(out)}
+
+
+def _remove(out: str, rels) -> None:
+    for rel in sorted(rels):
+        path = os.path.join(out, rel)
+        try:
+            os.remove(path)
+        except FileNotFoundError:
+            continue
+        folder = os.path.dirname(path)
+        while os.path.realpath(folder) != os.path.realpath(out):  # folders the export emptied go too
+            try:
+                os.rmdir(folder)
+            except OSError:
+                break
+            folder = os.path.dirname(folder)

@@ -1,0 +1,359 @@
+"""WebDataset tar shards: one sample per scene, every channel, in the dataset's own coding.
+
+Output::
+
+    OUT/
+      {split}/{split}-000000.tar    shards of at most ``shard_size`` bytes (a scene is never split)
+      index.json                    per split its shards (file, scenes, bytes), and the audio facts
+      README.md                     the dataset card
+
+A sample is the members of one scene id (WebDataset's key), in this order:
+
+- ``{key}.audio.npy``: float32 [C, T] (float32 datasets) or int16 [C, T] (int16 datasets:
+  ``sample / 32768``); ``{key}.audio.flac`` instead for flac datasets (16-bit, [T, C]);
+- ``{key}.json``: the labels and the query (:data:`SAMPLE_KEYS`; NaN as null);
+- ``{key}.record.json``: the scene's record (docs/format.md, "JSON shard").
+
+The ``webdataset`` package reads the shards as they are (``wds.WebDataset(urls).decode()``),
+so does ``datasets.load_dataset("webdataset", ...)`` (``.npy`` keeps every channel), and
+:mod:`tsel_data.streaming` streams them as the reader's scenes. Reading and writing the
+format live here, in one place.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import tarfile
+
+import numpy as np
+
+from ..choices import AudioCoding
+from ..errors import DatasetError
+from ..store.codings import INT16_SCALE, decode
+from ..store.extents import Extent, audio_extents, copy_extent
+from ..store.records import SceneRecord
+from ..store.scene import Scene
+from .base import Shards, SplitResult, Writer, WriterOption, parse_size
+from .coding import decode_samples, flac_bytes, npy_array, npy_header, stored_samples
+
+_NPY_HEADER = re.compile(r"\{'descr': '(?P<descr>[^']+)', 'fortran_order': (?P<fortran>True|False), "
+                         r"'shape': \((?P<shape>[0-9, ]*)\), \}")
+INDEX_FILE = "index.json"
+INDEX_KIND = "tsel-data webdataset"
+INDEX_VERSION = 1
+DEFAULT_SHARD_SIZE = "1GB"
+BLOCK = 512
+# the keys of a sample's JSON, in order
+SAMPLE_KEYS = ("scene_id", "split", "index", "query", "query_type", "query_relation", "pairing", "fs", "label_hop",
+               "format", "channel_names", "audio_coding", "audio_scale", "azimuth", "elevation", "distance",
+               "active", "mic_positions")
+
+
+def shard_name(split: str, k: int) -> str:
+    return f"{split}/{split}-{k:06d}.tar"
+
+
+def audio_member(coding: str) -> str:
+    """The member name (after the key) of a sample's audio."""
+    return "audio.flac" if coding == AudioCoding.FLAC else "audio.npy"
+
+
+class _Json(str):
+    """JSON text dropped into a document as it is (see :func:`sample_bytes`)."""
+
+
+def _labels(a: np.ndarray) -> _Json:
+    """A label array as JSON text, NaN as null: numbers only, so the text replace is safe
+    (and 20 times faster than mapping every value in Python)."""
+    return _Json(json.dumps(a.tolist()).replace("NaN", "null"))
+
+
+def sample_json(scene: Scene, coding: str, channel_names) -> dict:
+    """A scene's labels and query as the sample's JSON (float32 values as exact doubles;
+    ``query_relation`` is ``""`` for a caption, as in the HDF5 shards, so every sample has
+    the same types). The label arrays are :class:`_Json` text: :func:`sample_bytes`."""
+    return {"scene_id": scene.scene_id, "split": scene.split, "index": int(scene.index), "query": scene.query,
+            "query_type": scene.query_type, "query_relation": scene.query_relation or "", "pairing": scene.pairing,
+            "fs": scene.fs, "label_hop": scene.label_hop, "format": scene.format, "channel_names": list(channel_names),
+            "audio_coding": str(coding), "audio_scale": 1.0 if coding == AudioCoding.FLOAT32 else 1.0 / INT16_SCALE,
+            "azimuth": _labels(scene.azimuth), "elevation": _labels(scene.elevation),
+            "distance": _labels(scene.distance), "active": _Json(json.dumps(scene.active.tolist())),
+            "mic_positions": _Json(json.dumps(scene.mic_positions.tolist()))}
+
+
+def sample_bytes(doc: dict) -> bytes:
+    """The sample's JSON: plain values through json, :class:`_Json` text as it is."""
+    parts = [f"{json.dumps(k)}: {v if isinstance(v, _Json) else json.dumps(v, ensure_ascii=False)}"
+             for k, v in doc.items()]
+    return ("{" + ", ".join(parts) + "}").encode("utf-8")
+
+
+def sample_members(scene: Scene, coding: str, channel_names, extent: Extent | None = None) -> list[tuple[str, list]]:
+    """[(member name, [chunks])] of one scene's sample: chunks are bytes-like, or the
+    :class:`~tsel_data.store.extents.Extent` of the scene's samples in its shard."""
+    key = scene.scene_id
+    if extent is not None:
+        audio = [npy_header(extent.dtype, extent.shape), extent]
+    elif coding == AudioCoding.FLAC:
+        audio = [flac_bytes(scene.audio, scene.fs)]
+    else:
+        samples = np.ascontiguousarray(stored_samples(scene.audio, coding))
+        audio = [npy_header(samples.dtype, samples.shape), memoryview(samples).cast("B")]
+    members = [(f"{key}.{audio_member(coding)}", audio),
+               (f"{key}.json", [sample_bytes(sample_json(scene, coding, channel_names))])]
+    if scene.record is not None:
+        members.append((f"{key}.record.json", [json.dumps(scene.record.to_json(), ensure_ascii=False)
+                                               .encode("utf-8")]))
+    return members
+
+
+def member_bytes(chunks) -> int:
+    """Bytes a member takes in a tar: its header block and its data padded to blocks."""
+    size = sum(len(c) for c in chunks)
+    return BLOCK + size + (-size % BLOCK)
+
+
+class TarWriter:
+    """A tar file written member by member: headers from ``tarfile``, the data straight
+    from the arrays, or copied by the kernel from the HDF5 shard (an
+    :class:`~tsel_data.store.extents.Extent`; tarfile's loop would copy each 4 MB scene
+    through Python in 16 kB pieces). Members carry mtime 0: the same scenes, the same bytes."""
+
+    def __init__(self, path: str, sources: dict | None = None):
+        self.f = open(path, "wb", buffering=0)  # unbuffered: kernel copies append at the file's position
+        self.bytes = 0
+        self.sources = {} if sources is None else sources  # path -> open descriptor, shared across shards
+
+    def add(self, name: str, chunks) -> None:
+        info = tarfile.TarInfo(name)
+        info.size = sum(len(c) for c in chunks)
+        info.mode, info.mtime = 0o644, 0
+        self.f.write(info.tobuf(tarfile.PAX_FORMAT, "utf-8", "surrogateescape"))
+        for c in chunks:
+            if isinstance(c, Extent):
+                if c.path not in self.sources:
+                    self.sources[c.path] = os.open(c.path, os.O_RDONLY)
+                copy_extent(c, self.sources[c.path], self.f)
+            else:
+                self.f.write(c)
+        self.f.write(b"\0" * (-info.size % BLOCK))
+        self.bytes += member_bytes(chunks)
+
+    def close(self) -> None:
+        self.f.write(b"\0" * (2 * BLOCK))  # the end-of-archive marker
+        self.f.close()
+
+
+class WebDatasetWriter(Writer):
+    name = "webdataset"
+    summary = "WebDataset tar shards: every channel in the dataset's own coding, labels, query and record as JSON."
+    options = (WriterOption("shard_size", "Most bytes per tar shard (e.g. 500MB, 1GB).", DEFAULT_SHARD_SIZE,
+                            parse=parse_size),)
+
+    def identity(self, doc) -> dict:
+        return {**super().identity(doc), "audio coding": str(doc.raw.get("audio_coding", "float32"))}
+
+    def check(self, job) -> None:
+        self._coding = str(job.doc.raw.get("audio_coding", AudioCoding.FLOAT32))
+
+    def write_split(self, job, split: str) -> SplitResult:
+        shards = write_tars(job, split, self._coding, self.opts["shard_size"], shard_name)
+        return SplitResult([s["file"] for s in shards], {"scenes": sum(s["scenes"] for s in shards),
+                                                         "shards": shards})
+
+    def finish(self, job) -> list:
+        return [job.write_json(INDEX_FILE, index_doc(job, self._coding))] + super().finish(job)
+
+    def card_yaml(self, job) -> dict:
+        return {"configs": [{"config_name": "default", "data_files": [
+            {"split": s, "path": f"{s}/{s}-*.tar"} for s in job.exported_splits()]}]}
+
+    def lines(self, result) -> list:
+        out = [f"{split}: {v['scenes']} scenes in {len(v['shards'])} tar shard(s) -> {result.out}/{split}/"
+               for split, v in result.splits.items()]
+        return out + [f"index: {result.out}/{INDEX_FILE}; card: {result.out}/README.md"]
+
+
+def write_tars(job, split: str, coding: str, max_bytes: int, name_of) -> list[dict]:
+    """Every scene of ``split`` into tar shards of at most ``max_bytes`` (a scene that
+    alone is larger gets a shard of its own); [{"file", "scenes", "bytes"}]. Raw float32
+    and int16 shards give their samples by extent (the kernel copies them); others are
+    read through the reader."""
+    shards: list[dict] = []
+    extents = audio_extents(job.root, split, job.receiver) if coding != AudioCoding.FLAC else None
+    sources: dict = {}
+    try:
+        with job.open(split) as ds, Shards(job, lambda tmp: TarWriter(tmp, sources)) as out:
+            names = ds.channel_names
+            b = job.bar(len(ds), f"export {split}")
+            for i in range(len(ds)):
+                scene = ds.get(i, audio=extents is None)
+                members = sample_members(scene, coding, names, None if extents is None else extents[i])
+                size = sum(member_bytes(c) for _, c in members)
+                tar = out.current
+                if tar is None or tar.bytes + size + 2 * BLOCK > max_bytes:
+                    rel = name_of(split, len(shards))
+                    tar = out.next(rel)
+                    shards.append({"file": rel, "scenes": 0, "bytes": 0})
+                for name, chunks in members:
+                    tar.add(name, chunks)
+                shards[-1]["scenes"] += 1
+                shards[-1]["bytes"] = tar.bytes + 2 * BLOCK
+                b.update()
+            b.close()
+    finally:
+        for fd in sources.values():
+            os.close(fd)
+    return shards
+
+
+def index_doc(job, coding: str) -> dict:
+    """``index.json``: what the shards hold, for readers that want lengths and shard lists."""
+    doc = job.doc
+    return {"kind": INDEX_KIND, "index_version": INDEX_VERSION, "fs": doc.fs, "label_hop": doc.label_hop,
+            "format": doc.format, "channel_names": list(doc.channel_names), "audio_coding": coding,
+            "members": {"audio": audio_member(coding), "labels": "json", "record": "record.json"},
+            "splits": {s: {"scenes": job.summaries[s]["scenes"], "shards": job.summaries[s]["shards"]}
+                       for s in job.exported_splits()}}
+
+
+# --- reading ---------------------------------------------------------------------------
+
+
+def iter_members(path: str):
+    """(name, data) of every file in a tar, in order. ``.npy`` members come as their
+    arrays, read straight into place (writable, no copy); others as bytes. PAX and GNU
+    long names are followed; a damaged or cut header is a DatasetError naming the file."""
+    pending = None
+    with open(path, "rb", buffering=1 << 16) as f:
+        while True:
+            head = f.read(BLOCK)
+            if len(head) < BLOCK or not head.strip(b"\0"):
+                return
+            try:
+                info = tarfile.TarInfo.frombuf(head, "utf-8", "surrogateescape")
+            except tarfile.HeaderError as e:
+                raise DatasetError(f"{path}: damaged tar header at byte {f.tell() - BLOCK} ({e}); export the "
+                                   f"shard again") from None
+            name = pending or info.name
+            if info.isreg() and name.endswith(".npy"):
+                data = read_npy(f, info.size, path)
+            else:
+                data = f.read(info.size)
+                if len(data) != info.size:
+                    raise DatasetError(f"{path}: ends inside {info.name}; the shard is truncated: export it again")
+            f.seek(-info.size % BLOCK, os.SEEK_CUR)
+            if info.type == tarfile.XHDTYPE:
+                pending = _pax_path(data) or pending
+            elif info.type == tarfile.GNUTYPE_LONGNAME:
+                pending = data.rstrip(b"\0").decode("utf-8", "surrogateescape")
+            elif info.isreg():
+                yield name, data
+                pending = None
+
+
+def read_npy(f, size: int, path: str) -> np.ndarray:
+    """A ``.npy`` member of ``size`` bytes at ``f``'s position, read into a new array."""
+    head = f.read(10)
+    if head[:6] != b"\x93NUMPY" or len(head) < 10:
+        raise DatasetError(f"{path}: a .npy member is not a numpy file; export the shard again")
+    wide = head[6] >= 2  # version 2 headers count their length in 4 bytes
+    if wide:
+        head += f.read(2)
+    hlen = int.from_bytes(head[8:12] if wide else head[8:10], "little")
+    dtype, shape = npy_header_fields(f.read(hlen), path)
+    a = np.empty(shape, dtype=dtype)
+    if f.readinto(memoryview(a).cast("B")) != a.nbytes or len(head) + hlen + a.nbytes != size:
+        raise DatasetError(f"{path}: a .npy member is cut short; the shard is truncated: export it again")
+    return a
+
+
+def npy_header_fields(text: bytes, path: str) -> tuple[np.dtype, tuple]:
+    """(dtype, shape) of a C-ordered array's ``.npy`` header (a Python literal dict)."""
+    m = _NPY_HEADER.match(text.decode("latin1"))
+    if m is None or m.group("fortran") != "False":
+        raise DatasetError(f"{path}: a .npy member has a header this reader does not take: {text[:80]!r}")
+    shape = tuple(int(v) for v in m.group("shape").replace(",", " ").split())
+    return np.dtype(m.group("descr")), shape
+
+
+def _pax_path(data) -> str | None:
+    """The ``path`` record of a PAX header block ("LEN key=value\\n" records)."""
+    pos, raw = 0, data
+    while pos < len(raw):
+        space = raw.find(b" ", pos)
+        if space < 0:
+            return None
+        length = int(raw[pos:space])
+        key, _, value = raw[space + 1:pos + length - 1].partition(b"=")
+        if key == b"path":
+            return value.decode("utf-8", "surrogateescape")
+        pos += length
+    return None
+
+
+def split_key(name: str) -> tuple[str, str]:
+    """WebDataset's (key, member): the base name up to its first dot, and the rest."""
+    folder, _, base = name.rpartition("/")
+    stem, _, rest = base.partition(".")
+    return (f"{folder}/{stem}" if folder else stem), rest
+
+
+def iter_samples(path: str):
+    """{member: data} of every sample of a tar, in order (members of one key together)."""
+    key, sample = None, {}
+    for name, data in iter_members(path):
+        k, member = split_key(name)
+        if k != key and sample:
+            yield key, sample
+            sample = {}
+        key = k
+        sample[member] = data
+    if sample:
+        yield key, sample
+
+
+def _float32(rows) -> np.ndarray:
+    return np.array(rows, dtype=np.float32).reshape(len(rows), -1)
+
+
+def scene_of_sample(key: str, sample: dict, with_record: bool = True) -> Scene:
+    """The reader's :class:`~tsel_data.store.scene.Scene` of a sample (audio float32
+    [C, T], every label, the record when present and ``with_record``)."""
+    try:
+        meta = json.loads(sample["json"])
+        if "audio.npy" in sample:
+            a = sample["audio.npy"]
+            audio = decode_samples(a if isinstance(a, np.ndarray) else npy_array(a))
+        else:
+            audio = decode(np.frombuffer(sample["audio.flac"], dtype=np.uint8), AudioCoding.FLAC)
+        rec = sample.get("record.json") if with_record else None
+        return Scene(scene_id=meta["scene_id"], split=meta["split"], index=int(meta["index"]), query=meta["query"],
+                     audio=audio, azimuth=_float32(meta["azimuth"]), elevation=_float32(meta["elevation"]),
+                     distance=_float32(meta["distance"]), active=np.array(meta["active"], dtype=bool)
+                     .reshape(len(meta["active"]), -1), mic_positions=np.array(meta["mic_positions"],
+                                                                                dtype=np.float32).reshape(-1, 3),
+                     fs=int(meta["fs"]), label_hop=float(meta["label_hop"]), format=meta["format"],
+                     record=None if rec is None else SceneRecord.from_json(json.loads(rec)),
+                     query_type=meta["query_type"], query_relation=meta["query_relation"] or None,
+                     pairing=meta["pairing"])
+    except (KeyError, ValueError, TypeError) as e:
+        raise DatasetError(f"sample {key!r}: not a tsel-data sample ({type(e).__name__}: {e}); read it with the "
+                           f"webdataset package, or export it again") from None
+
+
+def read_index(folder: str) -> dict:
+    """``index.json`` of a WebDataset export (DatasetError when absent or not ours)."""
+    path = os.path.join(folder, INDEX_FILE)
+    try:
+        with open(path, encoding="utf-8") as f:
+            doc = json.load(f)
+    except FileNotFoundError:
+        raise DatasetError(f"{path} not found: {folder} is not a WebDataset export of tsel-data (`tsel export "
+                           f"webdataset DIR --out {folder}` makes one), or give the shard files") from None
+    except (OSError, ValueError) as e:
+        raise DatasetError(f"{path} is unreadable ({e}); export again") from None
+    if not isinstance(doc, dict) or doc.get("kind") != INDEX_KIND:
+        raise DatasetError(f"{path} is not the index of a tsel-data WebDataset export")
+    return doc

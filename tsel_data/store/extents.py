@@ -1,0 +1,79 @@
+"""Where each scene's audio bytes lie in its HDF5 shard, for exports that copy them as
+they are: the kernel copies file to file (``os.copy_file_range``), nothing passes through
+Python, so an export costs about what copying the shards costs.
+
+Only float32 and int16 shards the writer made qualify (one unfiltered, little-endian chunk
+per scene: its bytes are the [C, T] samples in C order, what the reader returns); anything
+else has no extents and is read through the reader.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import h5py
+import numpy as np
+
+from .dataset import load_dataset_doc
+from .layout import RECEIVERS_GROUP
+
+RAW_DTYPES = (np.dtype("<f4"), np.dtype("<i2"))
+
+
+@dataclass(frozen=True)
+class Extent:
+    """``nbytes`` bytes at ``offset`` of ``path``: one scene's samples, ``dtype`` [C, T]."""
+
+    path: str
+    offset: int
+    nbytes: int
+    dtype: np.dtype
+    shape: tuple
+
+    def __len__(self) -> int:
+        return self.nbytes
+
+
+def audio_extents(root: str, split: str, receiver: str | None = None) -> list[Extent] | None:
+    """The extent of every scene of ``split`` in order (the audio of ``receiver``, of a
+    dataset heard by several; default the first), or None when a shard does not store
+    that audio as raw chunks (a flac dataset, a rewritten file)."""
+    doc = load_dataset_doc(root)
+    name = "audio" if receiver is None or receiver == doc.format else f"{RECEIVERS_GROUP}/{receiver}/audio"
+    out: list[Extent] = []
+    for entry in doc.shards(split):
+        path = os.path.join(root, entry.file)
+        with h5py.File(path, "r") as f:
+            d = f[name]
+            if (d.ndim != 3 or d.chunks != (1, *d.shape[1:]) or d.id.get_create_plist().get_nfilters() != 0
+                    or d.dtype not in RAW_DTYPES or not np.little_endian):
+                return None
+            shape = tuple(int(v) for v in d.shape[1:])
+            nbytes = int(np.prod(shape)) * d.dtype.itemsize
+            for r in range(d.shape[0]):
+                info = d.id.get_chunk_info_by_coord((r, 0, 0))
+                if info.byte_offset is None or info.size != nbytes:
+                    return None
+                out.append(Extent(path, int(info.byte_offset), nbytes, np.dtype(d.dtype), shape))
+    return out
+
+
+def copy_extent(extent: Extent, src_fd: int, dst) -> None:
+    """Append ``extent``'s bytes (read from ``src_fd``, an open descriptor of its file) to
+    the unbuffered binary file ``dst``: in the kernel where it can, else read and written."""
+    left, offset = extent.nbytes, extent.offset
+    fd = dst.fileno()
+    try:
+        while left:
+            n = os.copy_file_range(src_fd, fd, left, offset)
+            if n <= 0:
+                break
+            left, offset = left - n, offset + n
+    except (AttributeError, OSError):  # no copy_file_range here (or across these filesystems)
+        pass
+    while left:
+        data = os.pread(src_fd, min(left, 1 << 24), offset)
+        if not data:
+            raise OSError(f"{extent.path} ends inside a scene's audio (byte {offset}); the shard is damaged")
+        dst.write(data)
+        left, offset = left - len(data), offset + len(data)

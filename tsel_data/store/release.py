@@ -1,0 +1,215 @@
+"""Recipe releases: a dataset published as its plan and per-scene checksums, no audio
+(docs/format.md, "Recipe releases"). ``tsel export recipes`` writes one; ``tsel generate
+--from`` rebuilds the dataset from it; ``tsel check DIR --release REL`` holds a dataset
+against it. This module is the format: its paths, the checksums, reading and comparing.
+
+    REL/
+      release.json            what the release is: splits, their files, the inputs, the checksum definitions
+      dataset.json            the dataset's, as it was
+      plan/config.json        the plan's config (roots as the dataset stored them)
+      plan/{split}.jsonl      one recipe per line
+      checksums/{split}.jsonl one line per scene: scene_id, index, audio, labels, record (sha256), clips
+      clips.jsonl             one line per clip the plan reads: audio (relative to the corpus), clip_id,
+                              sha256, bytes, captions, splits, scenes
+      README.md               the dataset card
+
+A rebuilt dataset says how it went in ``rebuild.json`` (:data:`REBUILD_FILE`).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import DatasetError
+from ..report import CheckReport
+from .layout import CONFIG_FILE, DATASET_FILE, PLAN_DIR
+from .reader import list_splits, open_dataset
+
+RELEASE_FILE = "release.json"
+CLIPS_FILE = "clips.jsonl"
+CHECKSUM_DIR = "checksums"
+REBUILD_FILE = "rebuild.json"
+RELEASE_KIND = "tsel-data recipe release"
+RELEASE_VERSION = 1
+PARTS = ("audio", "labels", "record")
+DIGESTS = {
+    "audio": "sha256 of 'C,T' then the float32 [C, T] samples the reader returns, little-endian, C order",
+    "labels": "sha256 of the query (UTF-8), a NUL byte, then azimuth, elevation, distance (float32, NaN as the "
+              "quiet NaN 0x7fc00000), active (uint8), each [S, F], and mic_positions float32 [C, 3]",
+    "record": "sha256 of the scene's JSON record with sorted keys, no spaces, UTF-8",
+}
+CANONICAL_NAN = np.float32(np.nan)
+
+
+def checksums_file(split: str) -> str:
+    return f"{CHECKSUM_DIR}/{split}.jsonl"
+
+
+def plan_file(split: str) -> str:
+    return f"{PLAN_DIR}/{split}.jsonl"
+
+
+def _sha(*chunks) -> str:
+    h = hashlib.sha256()
+    for c in chunks:
+        h.update(c)
+    return h.hexdigest()
+
+
+def _f32(a) -> bytes:
+    a = np.asarray(a, dtype="<f4")
+    return np.where(np.isnan(a), CANONICAL_NAN, a).astype("<f4").tobytes()
+
+
+def scene_digest(scene) -> dict:
+    """{"audio", "labels", "record"}: sha256 of a scene's parts (:data:`DIGESTS`)."""
+    audio = np.ascontiguousarray(scene.audio, dtype="<f4")
+    labels = _sha(scene.query.encode("utf-8"), b"\0", _f32(scene.azimuth), _f32(scene.elevation),
+                  _f32(scene.distance), np.asarray(scene.active, dtype=np.uint8).tobytes(), _f32(scene.mic_positions))
+    record = "" if scene.record is None else _sha(json.dumps(scene.record.to_json(), sort_keys=True,
+                                                             separators=(",", ":"), ensure_ascii=False).encode())
+    return {"audio": _sha(f"{audio.shape[0]},{audio.shape[1]}".encode(), audio.tobytes()), "labels": labels,
+            "record": record}
+
+
+def differing_parts(want: dict, got: dict) -> list[str]:
+    """The parts (:data:`PARTS`) whose checksums differ."""
+    return [p for p in PARTS if want.get(p) != got.get(p)]
+
+
+@dataclass(frozen=True)
+class Release:
+    """A recipe release folder, read: ``doc`` (release.json), ``plan_doc`` (plan/config.json)."""
+
+    root: str
+    doc: dict
+    plan_doc: dict
+
+    @property
+    def splits(self) -> list[str]:
+        return list(self.doc["splits"])
+
+    def path(self, rel: str) -> str:
+        return os.path.join(self.root, rel)
+
+    def recipe_lines(self, split: str) -> list[str]:
+        with open(self.path(plan_file(split)), encoding="utf-8") as f:
+            return [line.rstrip("\n") for line in f if line.strip()]
+
+    def checksums(self, split: str) -> dict:
+        """{scene_id: {"index", "audio", "labels", "record", "clips"}} in plan order."""
+        return {e["scene_id"]: e for e in _jsonl(self.path(checksums_file(split)))}
+
+    def clips(self) -> dict:
+        """{audio name: {"clip_id", "sha256", "bytes", "captions", "splits", "scenes"}}."""
+        return {e["audio"]: e for e in _jsonl(self.path(CLIPS_FILE))}
+
+
+def _jsonl(path: str) -> list:
+    out = []
+    try:
+        with open(path, encoding="utf-8") as f:
+            for n, line in enumerate(f, 1):
+                if line.strip():
+                    out.append(json.loads(line))
+    except OSError as e:
+        raise DatasetError(f"{path}: cannot read ({e.strerror or e}); the release is incomplete") from None
+    except ValueError as e:
+        raise DatasetError(f"{path}:{n}: damaged line ({e}); the release is damaged: export it again") from None
+    return out
+
+
+def load_release(root: str) -> Release:
+    """Read a release folder (DatasetError in one line when it is not one)."""
+    root = os.fspath(root)
+    path = os.path.join(root, RELEASE_FILE)
+    if not os.path.isfile(path):
+        raise DatasetError(f"{path} not found: {root} is not a recipe release (`tsel export recipes DIR --out "
+                           f"{root}` makes one)")
+    try:
+        with open(path, encoding="utf-8") as f:
+            doc = json.load(f)
+        with open(os.path.join(root, CONFIG_FILE), encoding="utf-8") as f:
+            plan_doc = json.load(f)
+    except (OSError, ValueError) as e:
+        raise DatasetError(f"{root}: the release is damaged or incomplete ({e}); export it again") from None
+    if not isinstance(doc, dict) or doc.get("kind") != RELEASE_KIND or not isinstance(doc.get("splits"), dict):
+        raise DatasetError(f"{path} is not a tsel-data recipe release")
+    if int(doc.get("release_version", 0)) > RELEASE_VERSION:
+        raise DatasetError(f"{path} is release version {doc['release_version']}, newer than this tsel-data reads "
+                           f"({RELEASE_VERSION}); update tsel-data")
+    return Release(root, doc, plan_doc)
+
+
+def read_rebuild_report(root: str) -> dict | None:
+    """``rebuild.json`` of a dataset rebuilt from a release (None when absent)."""
+    try:
+        with open(os.path.join(root, REBUILD_FILE), encoding="utf-8") as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return None
+
+
+def check_against_release(root: str, release_dir: str) -> CheckReport:
+    """Hold the dataset ``root`` against a release, scene by scene: each scene's audio,
+    labels and record against the release's checksums. A scene that differs, or that
+    the dataset lacks without its rebuild report saying why, is an error; a scene left
+    out or substituted by the rebuild (a clip was missing) is a warning."""
+    rep = CheckReport(f"dataset {root} against release {release_dir}")
+    try:
+        rel = load_release(release_dir)
+        have = list_splits(root)
+    except DatasetError as e:
+        rep.error(e)
+        return rep
+    known = {s["scene_id"]: s for s in (read_rebuild_report(root) or {}).get("scenes", [])}
+    rep.facts["splits"] = {}
+    for split in rel.splits:
+        want = rel.checksums(split)
+        counts = {"identical": 0, "differs": 0, "absent": 0}
+        got = {}
+        if split in have:
+            with open_dataset(root, split) as ds:
+                for scene in ds:
+                    got[scene.scene_id] = scene_digest(scene)
+        for sid, digest in want.items():
+            note = known.get(sid, {})
+            if sid not in got:
+                counts["absent"] += 1
+                if note.get("status") == "not-buildable":
+                    rep.warnings.append(f"{sid}: not in the dataset ({note.get('why', 'a clip is missing')})")
+                else:
+                    rep.error(f"{sid}: in the release but not in {root}", DatasetError)
+                continue
+            parts = differing_parts(digest, got[sid])
+            if not parts:
+                counts["identical"] += 1
+            elif note.get("status") == "substituted":
+                counts["differs"] += 1
+                rep.warnings.append(f"{sid}: differs ({', '.join(parts)}) as expected: {note.get('why', '')}")
+            else:
+                counts["differs"] += 1
+                rep.error(f"{sid}: differs from the release ({', '.join(parts)})"
+                          + (f": {note['why']}" if note.get("why") else ""), DatasetError)
+        extra = sorted(set(got) - set(want))
+        if extra:
+            rep.error(f"{split}: {len(extra)} scene(s) not in the release, e.g. {extra[0]}", DatasetError)
+        rep.facts["splits"][split] = {"scenes": len(want), **counts}
+    return rep
+
+
+def release_summary_lines(rep: CheckReport) -> list[str]:
+    """The per-split counts of :func:`check_against_release`."""
+    out = [f"{rep.target}: {'OK' if rep.ok else f'{len(rep.errors)} problem(s)'}"]
+    for split, s in rep.facts.get("splits", {}).items():
+        out.append(f"  {split}: {s['identical']} of {s['scenes']} scenes bit-identical, {s['differs']} differ, "
+                   f"{s['absent']} absent")
+    return out
+
+
+# files a release copies from the dataset as they are
+COPIED = (DATASET_FILE, CONFIG_FILE)
