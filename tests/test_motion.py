@@ -67,6 +67,37 @@ def test_simulated_lines_pass_the_array_at_their_speed(small_config, tmp_path):
             assert dist.min() >= 1.0 - 1e-3 and dist.max() > dist.min() + 0.1         # passes by, not around
 
 
+def test_line_passes_longer_than_the_room_walk_wall_to_wall_at_their_speed(small_config):
+    """40 °/s at 2-3 m is 14-21 m in 10 s, longer than the paper's 5-15 m rooms: every
+    scene still plans; each pass keeps its speed while it walks, stays inside the wall
+    margins, passes its closest point, and stands at a wall margin when it runs out of room."""
+    cfg = small_config('scene.motion="moving"', 'scene.path="line"', "scene.speed=40.0", "audio.duration=10.0",
+                       'sources.distance=["uniform", 2.0, 3.0]', splits={"train": 12})
+    m = cfg.sources.wall_margin
+    stood = 0
+    for r in plan_recipes(cfg, "train", CatalogView(build_catalog(cfg, cfg.corpus.dir).clips["train"])):
+        dims = np.asarray(r.room.dims)
+        c = np.asarray(r.array.centre)
+        for s in r.sources:
+            if not s.moving:
+                continue
+            k = np.asarray(s.path)
+            xy = k[:, 1:3]
+            assert np.all(xy >= m - 1e-6) and np.all(xy <= dims[:2] - m + 1e-6)
+            v = np.linalg.norm(np.diff(xy, axis=0), axis=1) / np.diff(k[:, 0])
+            walking = v > 1e-6
+            d_close = np.min(np.linalg.norm(k[:, 1:] - c, axis=1))
+            full = walking & np.r_[True, walking[:-1]] & np.r_[walking[1:], True]  # not the step it stops in
+            np.testing.assert_allclose(v[full], np.radians(40.0) * d_close, rtol=2e-3)
+            assert np.all(v <= np.radians(40.0) * d_close * (1 + 2e-3))
+            if not walking.all():  # it stopped: at a wall margin, after walking the whole chord
+                stood += 1
+                ends = xy[[0, -1]]
+                at_wall = np.isclose(ends, m, atol=1e-5) | np.isclose(ends, dims[:2] - m, atol=1e-5)
+                assert at_wall.any(axis=1)[~walking[[0, -1]]].all()
+    assert stood > 0  # the setting is one where passes must stop
+
+
 @pytest.mark.parametrize("kind", ["arc", "line"])
 def test_moving_source_audio_comes_from_its_labels(kind, small_config, tmp_path):
     """A noise source on an arc or a line, rendered in a near-anechoic room: in every label
@@ -289,9 +320,10 @@ def test_speeds_and_distances_are_as_configured(small_config, tmp_path):
                 ang = np.degrees(np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1, 1)))
                 speeds.append(float(np.median(ang / np.diff(t))))
                 distances.append(float(np.linalg.norm(p[0])))
-            else:  # a line: v / closest distance
-                v = np.linalg.norm(p[1] - p[0]) / (t[1] - t[0])
-                e = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
+            else:  # a line: v / closest distance, on a step where it walks (it may stand at a wall)
+                j = int(np.argmax(np.linalg.norm(np.diff(p, axis=0), axis=1)))
+                v = np.linalg.norm(p[j + 1] - p[j]) / (t[j + 1] - t[j])
+                e = (p[j + 1] - p[j]) / np.linalg.norm(p[j + 1] - p[j])
                 closest = np.linalg.norm(p[0] - np.dot(p[0], e) * e)
                 speeds.append(float(np.degrees(v / closest)))
                 distances.append(float(closest))
@@ -304,24 +336,26 @@ def test_speeds_and_distances_are_as_configured(small_config, tmp_path):
 
 
 def test_a_setting_the_rooms_cannot_hold_is_named_by_tsel_check(demo_corpus):
-    r = _tsel("check", "--preset", "demo", "--corpus-dir", demo_corpus, "--split", "train=4", "--split", "val=0",
-              "--split", "test=0", "--set", 'scene.motion="moving"', "--set", 'scene.path="line"',
-              "--set", "scene.speed=40.0", "--set", 'sources.distance=["uniform", 2.9, 3.0]',
-              "--set", 'room.length=["uniform", 5.0, 6.0]', "--set", 'room.width=["uniform", 5.0, 6.0]')
+    small_rooms = ("--set", 'room.length=["uniform", 5.0, 6.0]', "--set", 'room.width=["uniform", 5.0, 6.0]')
+    common = ("check", "--preset", "demo", "--corpus-dir", demo_corpus, "--split", "train=4", "--split", "val=0",
+              "--split", "test=0", "--set", 'scene.motion="moving"', "--set", "scene.speed=40.0",
+              "--set", 'sources.distance=["uniform", 2.9, 3.0]', *small_rooms)
+    # a 21 m line pass in a 6 m room walks wall to wall; an arc of 3 m radius cannot turn in it
+    assert _tsel(*common, "--set", 'scene.path="line"').returncode == 0
+    r = _tsel(*common, "--set", 'scene.path="arc"')
     assert r.returncode == 2 and "Traceback" not in r.stderr
-    assert "a line path at 40°/s (scene.speed)" in r.stderr and "sources.distance" in r.stderr
-    assert " m long in 10 s" in r.stderr  # how far it travels, to compare with the rooms
+    assert "an arc path at 40°/s (scene.speed)" in r.stderr and "sources.distance" in r.stderr
 
 
 def test_one_source_that_does_not_fit_is_not_blamed_on_separation(demo_corpus):
     r = _tsel("check", "--preset", "demo", "--corpus-dir", demo_corpus, "--split", "train=4", "--split", "val=0",
               "--split", "test=0", "--set", 'scene.scenario="directional+additive"', "--set", 'scene.motion="moving"',
-              "--set", 'scene.path="line"', "--set", "scene.speed=40.0", "--set", 'sources.distance=["uniform", 2.9, 3.0]',
+              "--set", 'scene.path="arc"', "--set", "scene.speed=40.0", "--set", 'sources.distance=["uniform", 2.9, 3.0]',
               "--set", 'room.length=["uniform", 5.0, 6.0]', "--set", 'room.width=["uniform", 5.0, 6.0]')
     assert r.returncode == 2 and "Traceback" not in r.stderr
     lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
     assert lines and all("min_separation" not in ln for ln in lines), r.stderr
-    assert "m long in 10 s" in lines[0] and "lower the settings named" in lines[0]
+    assert "2.9" in lines[0] and "lower the settings named" in lines[0]
 
 
 def _tsel(*args):

@@ -38,7 +38,7 @@ class _Want:
     speed: float = 0.0  # °/s great-circle, for a moving source
 
     def describe(self, duration: float) -> str:
-        motion = f"a {self.kind} path at {self.speed:g}°/s (scene.speed), " if self.moving else ""
+        motion = f"{'an' if self.kind == PathKind.ARC else 'a'} {self.kind} path at {self.speed:g}°/s (scene.speed), " if self.moving else ""
         text = f"{motion}{self.distance:.2f} m from the array (sources.distance), {self.height:.2f} m high"
         if self.moving and self.kind == PathKind.LINE:  # v = speed·distance, straight on
             text += f", {math.radians(self.speed) * self.distance * duration:.1f} m long in {duration:g} s"
@@ -202,7 +202,7 @@ def knot_hop(kind: str, speed: float, distance: float, r_h: float) -> float | No
 
 
 def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want: "_Want", fc: np.ndarray):
-    """A simulated moving source at constant height, or None if it leaves the room:
+    """A simulated moving source at constant height, or None if it does not fit the room:
     ``{"path": ((t, x, y, z), ...) room frame, "_track": azimuth (array frame) at the label frames}``.
 
     ω = ``scene.speed`` is the angular speed seen from the array (great-circle °/s, as
@@ -210,34 +210,65 @@ def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want
     so the azimuth turns at ω·d/r_h. ``line``: a straight pass, perpendicular to azimuth
     az0 at horizontal distance r_h when closest (at a time drawn over the clip), at the
     speed v = ω·d that sweeps ω °/s there, the fastest it gets; the azimuth then turns at
-    most ω·d/r_h. Knots every :func:`knot_hop`: at least every 100 ms, every 4° of
+    most ω·d/r_h. A pass longer than the room's chord through that closest point walks
+    the whole chord at that speed and stands at the wall margin before and after
+    (docs/acoustics.md, "Moving sources"). Knots every :func:`knot_hop`: at least every 100 ms, every 4° of
     azimuth and, on a line, every 3 cm of travel.
     """
     kind, speed, d, h = want.kind, want.speed, want.distance, want.height
     direction = 1 if rng.random() < 0.5 else -1
-    dur = cfg.audio.duration
+    dur, m = cfg.audio.duration, cfg.sources.wall_margin
     az_rate = speed * d / r_h  # °/s of azimuth: the arc's, and the line's at its closest
     hop = knot_hop(kind, speed, d, r_h) or dur
     t = np.arange(0.0, dur + hop - 1e-9, hop)
+    if not m <= h <= room.dims[2] - m:
+        return None
     if kind == PathKind.ARC:
         a = np.radians(az0 + yaw + direction * az_rate * t)
         x, y = centre[0] + r_h * np.cos(a), centre[1] + r_h * np.sin(a)
         track = az0 + direction * az_rate * fc
+        if x.min() < m or y.min() < m or x.max() > room.dims[0] - m or y.max() > room.dims[1] - m:
+            return None
     else:
-        t_close = float(rng.uniform(0.0, dur))
         a0 = math.radians(az0 + yaw)
+        p0 = np.array([centre[0] + r_h * math.cos(a0), centre[1] + r_h * math.sin(a0)])
+        u = direction * np.array([-math.sin(a0), math.cos(a0)])  # the way it walks
+        chord = _chord(p0, u, room.dims, m)
+        if chord is None:
+            return None
         v = math.radians(speed) * d
-        s = direction * v * (t - t_close)  # signed distance along the line from the closest point
-        x = centre[0] + r_h * math.cos(a0) - s * math.sin(a0)
-        y = centre[1] + r_h * math.sin(a0) + s * math.cos(a0)
-        track = az0 + direction * np.degrees(np.arctan2(v * (fc - t_close), r_h))
-    m = cfg.sources.wall_margin
-    if (x.min() < m or y.min() < m or x.max() > room.dims[0] - m or y.max() > room.dims[1] - m
-            or not m <= h <= room.dims[2] - m):
-        return None
+        t_close = float(rng.uniform(*_closest_times(chord, v, dur)))
+        # beyond the chord the source stands at the wall margin: a pass longer than the
+        # room keeps its speed and its closest approach, and walks wall to wall
+        s = np.clip(v * (t - t_close), *chord)  # metres along u from the closest point
+        x, y = p0[0] + s * u[0], p0[1] + s * u[1]
+        track = az0 + direction * np.degrees(np.arctan2(np.clip(v * (fc - t_close), *chord), r_h))
     path = tuple((round(float(ti), 6), round(float(xi), 6), round(float(yi), 6), round(h, 6))
                  for ti, xi, yi in zip(t, x, y))
     return {"path": path, "_track": track}
+
+
+def _chord(p0: np.ndarray, u: np.ndarray, dims, m: float) -> tuple[float, float] | None:
+    """The part [s_min, s_max] (m along unit ``u`` from ``p0``) of a horizontal line that
+    lies inside the room's wall margins, or None when ``p0`` itself is outside them."""
+    lo, hi = -math.inf, math.inf
+    for k in range(2):
+        a, b = m - p0[k], dims[k] - m - p0[k]
+        if a > 0 or b < 0:
+            return None
+        if abs(u[k]) > 1e-12:
+            ends = sorted((a / u[k], b / u[k]))
+            lo, hi = max(lo, ends[0]), min(hi, ends[1])
+    return lo, hi
+
+
+def _closest_times(chord: tuple[float, float], v: float, dur: float) -> tuple[float, float]:
+    """The times of closest approach (within the clip) at which a pass at ``v`` m/s stays
+    on ``chord`` for the whole clip or, when the pass is longer than the chord, walks all
+    of it. A pass that fits anywhere draws over the whole clip, as before passes fitted."""
+    s_min, s_max = chord
+    late, early = dur - s_max / v, -s_min / v  # leaves the chord at the end / started before it
+    return max(0.0, min(late, early)), min(dur, max(late, early))
 
 
 # --- RIR-bank scenes ----------------------------------------------------------------------

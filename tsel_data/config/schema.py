@@ -190,7 +190,8 @@ class SceneConfig:
     path: Dist = dist("arc", "how simulated sources move: `arc` (around the array at constant distance and height) "
                              "or `line` (a straight pass at constant height: closest to the array at a random time "
                              "of the clip, at `sources.distance`, where it sweeps `speed`, so v = speed·distance; "
-                             "slower further away), or `[\"choose\", [\"arc\", \"line\"]]`. Bank walks follow the "
+                             "slower further away; a pass longer than the room walks the whole chord through its "
+                             "closest point at that speed and stands at the wall margin before and after), or `[\"choose\", [\"arc\", \"line\"]]`. Bank walks follow the "
                              "bank's own trajectories", choices=PathKind)
 
 
