@@ -133,9 +133,9 @@ def _path(a, b, t_end, hop, dur=10.0):
 @pytest.mark.slow
 @pytest.mark.parametrize("case", list(WORST_LINES))
 def test_a_line_pass_in_a_reverberant_room_keeps_its_level(case):
-    """Early reflections slide against the aligned direct path; with the shared tail
-    convolved apart and knots every 3 cm of travel the worst planned line passes meet the
-    goal with room to spare, where whole RIRs at 100 ms knots (the renderer's input
+    """With the shared tail convolved apart, knots every 6 cm of travel and the image
+    sources in groups each aligned by its own delay, the worst planned line passes meet
+    the goal with room to spare, where whole RIRs at 100 ms knots (the renderer's input
     before) do not."""
     from tsel_data.placement import knot_hop
     from tsel_data.render import path_image
@@ -144,7 +144,7 @@ def test_a_line_pass_in_a_reverberant_room_keeps_its_level(case):
     speed = np.linalg.norm(np.subtract(b, a)) / t_end
     d = 2.0  # its closest approach: it sweeps degrees(speed / d) there
     hop = knot_hop("line", np.degrees(speed / d), d, d)
-    assert speed * hop == pytest.approx(0.03) and hop < 0.1  # 3 cm of travel
+    assert speed * hop == pytest.approx(0.06) and hop < 0.1  # 6 cm of travel
     T = int(9.5 * FS)
     path = _path(a, b, t_end, hop)
     now = knot_ripple(lambda x: path_image(room, arr, path, x, FS, "hybrid", 3)[0][:, :T], path[:, 0], FS, T)
@@ -157,8 +157,8 @@ def test_a_line_pass_in_a_reverberant_room_keeps_its_level(case):
 
 def test_the_shared_tail_apart_is_the_same_response():
     """tail_apart returns the image-source parts and the one tail the knots share: they sum
-    to the whole RIRs bit for bit, the measured RT60 is the same, and where nothing is
-    warped (an arc) the path's image is the whole RIRs' render."""
+    to the whole RIRs bit for bit and the measured RT60 is the same; in image groups the
+    parts are the same images, split (the groups sum to the ungrouped part)."""
     from tsel_data.render import path_image
 
     room, centre = Room((8.0, 7.0, 4.0), 0.6), (4.0, 3.5, 1.2)
@@ -176,26 +176,35 @@ def test_the_shared_tail_apart_is_the_same_response():
         summed[..., :L] += apart.rirs
         assert np.array_equal(summed, whole.rirs)
         assert apart.rt60_measured == whole.rt60_measured
+        grouped = simulate_rirs(room, arr, path[:, 1:], FS, "hybrid", seed=5, one_source=True, tail_apart=True,
+                                groups=4)
+        K, G, C = grouped.delays.shape
+        assert G == 4 and grouped.rirs.shape == (K, G * C, L) and np.array_equal(grouped.tail, apart.tail)
+        parts = grouped.rirs.reshape(K, G, C, L)
+        assert all(np.abs(parts[:, g]).max() > 0 for g in range(G))  # every group holds images
+        np.testing.assert_allclose(parts.sum(axis=1), apart.rirs, rtol=0, atol=1e-6 * np.abs(apart.rirs).max())
         image, rt60 = path_image(room, arr, path, x, FS, "hybrid", 5)
-        ref = render_moving(x, whole.rirs, t, FS)[:, : len(x)]
-        assert rt60 == whole.rt60_measured
-        assert np.max(np.abs(image - ref)) <= 1e-5 * np.max(np.abs(ref))
+        assert rt60 == pytest.approx(whole.rt60_measured, rel=1e-6)
+        ref = render_moving(x, whole.rirs, t, FS)[:, : len(x)]  # one warp: the same level, reflections apart
+        assert abs(10 * np.log10(np.sum(image**2) / np.sum(ref**2))) < 0.2
         # methods without a shared tail return whole RIRs
         assert simulate_rirs(room, arr, path[:3, 1:], FS, "ism", one_source=True, tail_apart=True).tail is None
 
 
 def test_line_knots_follow_the_travel():
-    """Knots at least every 100 ms and every 4° of azimuth; on a line also every 3 cm of
-    travel (v = speed·distance); an arc keeps its spacing."""
+    """Knots at least every 100 ms, every 4° of azimuth and every 6 cm of travel
+    (v = speed·distance), on arcs and lines alike."""
     from tsel_data.placement import knot_hop
 
-    assert knot_hop("arc", 40.0, 2.0, 1.0) == pytest.approx(0.05)  # 4° of azimuth at 80°/s
-    assert knot_hop("arc", 40.0, 3.0, 3.0) == pytest.approx(0.1)  # 21 cm of travel: an arc keeps 100 ms
-    for speed, d in ((10.0, 1.0), (20.0, 2.0), (40.0, 3.0)):
-        hop = knot_hop("line", speed, d, d)
-        assert hop <= 0.1 and np.radians(speed) * d * hop <= 0.03 + 1e-12
+    assert knot_hop("arc", 20.0, 1.0, 0.5) == pytest.approx(0.1)  # 4° of azimuth at 40°/s, 3.5 cm
+    assert knot_hop("arc", 40.0, 1.0, 0.5) == pytest.approx(0.05)  # 4° of azimuth at 80°/s
+    assert knot_hop("arc", 40.0, 3.0, 3.0) == pytest.approx(0.06 / (np.radians(40.0) * 3.0))  # 6 cm of travel
+    for kind in ("arc", "line"):
+        for speed, d in ((10.0, 1.0), (20.0, 2.0), (40.0, 3.0)):
+            hop = knot_hop(kind, speed, d, d)
+            assert hop <= 0.1 and np.radians(speed) * d * hop <= 0.06 + 1e-12
     assert knot_hop("line", 10.0, 1.0, 1.0) == pytest.approx(0.1)  # 1.7 cm per 100 ms
-    assert knot_hop("line", 40.0, 2.0, 2.0) == pytest.approx(0.03 / (np.radians(40.0) * 2.0))
+    assert knot_hop("line", 40.0, 2.0, 2.0) == pytest.approx(0.06 / (np.radians(40.0) * 2.0))
     assert knot_hop("line", 0.0, 2.0, 2.0) is None
 
 

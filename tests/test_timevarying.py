@@ -259,3 +259,16 @@ def test_fft_round_trip_on_padded_rows(n):
     spec = fft.rfft(a)
     assert np.allclose(spec, np.fft.rfft(a.astype(np.float64)), atol=1e-3 * np.sqrt(n))
     assert np.allclose(fft.irfft(spec, n), a, atol=1e-5)
+
+
+def test_the_stored_farrow_filters_are_their_design_and_delay_by_mu():
+    from tsel_data.delaypath import design_farrow, farrow_coefficients, fractional_kernel
+
+    np.testing.assert_allclose(farrow_coefficients(), design_farrow(), rtol=0, atol=1e-12)
+    # the filter delays a band-limited tone by mu: -50 dB error below half the Nyquist
+    w = 0.4 * np.pi
+    for mu in (-0.5, -0.2, 0.3, 0.5):
+        k = fractional_kernel(mu)[0]
+        j = np.arange(-len(k) // 2 + 1, len(k) // 2 + 1)
+        resp = np.sum(k * np.exp(-1j * w * j))
+        assert abs(resp - np.exp(-1j * w * mu)) < 10 ** (-50 / 20)

@@ -29,9 +29,15 @@ _FIR_HOP = 4096  # output samples per overlap-save frame of the Farrow filters (
 @lru_cache(maxsize=1)
 def farrow_coefficients() -> np.ndarray:
     """C [ORDER + 1, 2·FD_HALF + 1]: the fractional delay by μ ∈ [-1/2, 1/2] is the FIR
-    K_μ[j] = Σ_q μ^q C[q, j + FD_HALF], j = -FD_HALF..FD_HALF (a Farrow structure).
+    K_μ[j] = Σ_q μ^q C[q, j + FD_HALF], j = -FD_HALF..FD_HALF (a Farrow structure), as
+    :func:`design_farrow` designs it (stored: tsel_data/farrow_table.py)."""
+    from .farrow_table import FARROW
 
-    Least squares on the frequency response: Σ_j K_μ[j] e^{-iωj} ≈ e^{-iωμ} for
+    return np.array(FARROW, dtype=np.float64)
+
+
+def design_farrow() -> np.ndarray:
+    """The design of :func:`farrow_coefficients`. Least squares on the frequency response: Σ_j K_μ[j] e^{-iωj} ≈ e^{-iωμ} for
     ω ≤ 0.9 π and |μ| ≤ 1/2, a cubic in μ: error ≤ -50 dB below 0.5 π (6 kHz at 24 kHz),
     -39 dB below 0.7 π, -30 dB at 0.9 π; magnitude within ±0.13 dB up to 0.9 π.
     """

@@ -178,27 +178,25 @@ def _place_sources(cfg, rng, wants: list, room: Room, centre, yaw):
     return out
 
 
-# A moving source's RIRs are computed at least every 100 ms and every 4 degrees, and a
-# line pass's every KNOT_TRAVEL_M of its path (docs/acoustics.md, "Moving sources").
-KNOT_HOP_S, KNOT_STEP_DEG, KNOT_TRAVEL_M = 0.1, 4.0, 0.03
+# A moving source's RIRs are computed at least every 100 ms, every 4 degrees and every
+# KNOT_TRAVEL_M of its path (docs/acoustics.md, "Moving sources").
+KNOT_HOP_S, KNOT_STEP_DEG, KNOT_TRAVEL_M = 0.1, 4.0, 0.06
 
 
 def knot_hop(kind: str, speed: float, distance: float, r_h: float) -> float | None:
     """Seconds between a simulated path's knots (None: the source does not move).
 
     ``speed`` °/s seen from the array at ``distance`` m, ``r_h`` m the horizontal
-    distance: at most KNOT_HOP_S, KNOT_STEP_DEG of azimuth, and on a line KNOT_TRAVEL_M
-    of travel. The direct path is aligned between knots however far it moves (the
-    renderer warps the input); a line's early reflections slide against it in proportion
-    to the travel and comb at the knot midpoints, which closer knots keep shallow. An
-    arc's strongest reflections (floor, ceiling) keep their length.
+    distance: at most KNOT_HOP_S, KNOT_STEP_DEG of azimuth and KNOT_TRAVEL_M of travel.
+    Between knots every image source moves with the delay of its group
+    (acoustics/image_paths.py), the direct path exactly; what is left combs in
+    proportion to the travel between knots, for arcs too (their side walls' reflections
+    move as fast as the source).
     """
     if speed <= 0:
         return None
     hop = min(KNOT_HOP_S, KNOT_STEP_DEG / (speed * distance / r_h))
-    if kind != PathKind.ARC:
-        hop = min(hop, KNOT_TRAVEL_M / (math.radians(speed) * distance))
-    return hop
+    return min(hop, KNOT_TRAVEL_M / (math.radians(speed) * distance))
 
 
 def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want: "_Want", fc: np.ndarray):
@@ -213,7 +211,7 @@ def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want
     most ω·d/r_h. A pass longer than the room's chord through that closest point walks
     the whole chord at that speed and stands at the wall margin before and after
     (docs/acoustics.md, "Moving sources"). Knots every :func:`knot_hop`: at least every 100 ms, every 4° of
-    azimuth and, on a line, every 3 cm of travel.
+    azimuth and every 6 cm of travel.
     """
     kind, speed, d, h = want.kind, want.speed, want.distance, want.height
     direction = 1 if rng.random() < 0.5 else -1

@@ -21,6 +21,7 @@ import numpy as np
 from .acoustics import simulate_rirs
 from .acoustics.capsules import capsule_model
 from .acoustics.diffuse import diffuse_image
+from .acoustics.image_paths import GROUPS
 from .ambience import omni_energy
 from .audio import active_rms, db, frame_activity, load_clip_cached
 from .noise import noise_image, noise_gain, noise_level_dbfs
@@ -129,15 +130,29 @@ def _additive(image: np.ndarray, dry: np.ndarray, gains: np.ndarray) -> None:
 def path_image(room, array, path, dry: np.ndarray, fs: int, method: str, seed: int) -> tuple[np.ndarray, float | None]:
     """A simulated moving source's image [C, len(dry)] and the measured RT60 of its first
     knot: ``path`` knots (t, x, y, z), room frame. The knots' image-source parts go through
-    the time-varying renderer; the late tail they share (hybrid) does not move with the
-    source, nor with its direct path's warp, so it is one static convolution."""
+    the time-varying renderer, in groups of images that move alike, each aligned by its
+    own delay between knots (acoustics/image_paths.py); the late tail they share (hybrid)
+    does not move with the source, so it is one static convolution."""
     knots = np.asarray(path, dtype=np.float64)
-    rs = simulate_rirs(room, array, knots[:, 1:], fs, method=method, seed=seed, one_source=True, tail_apart=True)
+    rs = simulate_rirs(room, array, knots[:, 1:], fs, method=method, seed=seed, one_source=True, tail_apart=True,
+                       groups=GROUPS)
     n = len(dry)
-    image = render_moving(dry, rs.rirs, knots[:, 0], fs)[:, :n]
+    image = moving_image_part(dry, rs, knots[:, 0], fs)[:, :n]
     if rs.tail is not None:
         image += render_static(dry, rs.tail)[:, :n]
     return image, rs.rt60_measured
+
+
+def moving_image_part(dry: np.ndarray, rs, times: np.ndarray, fs: int) -> np.ndarray:
+    """The knots' RIRs ``rs`` (a RirSet, rirs without the shared tail) rendered along the
+    path: float32 [C, ≥ len(dry)]; image groups (``rs.delays``) each aligned by its own delay."""
+    if rs.delays is None:
+        return render_moving(dry, rs.rirs, times, fs)
+    C = rs.delays.shape[2]
+    image = np.array(render_moving(dry, rs.rirs[:, :C], times, fs, delays=rs.delays[:, 0]))
+    for g in range(1, rs.delays.shape[1]):
+        image += render_moving(dry, rs.rirs[:, g * C:(g + 1) * C], times, fs, delays=rs.delays[:, g])
+    return image
 
 
 @dataclass(frozen=True)

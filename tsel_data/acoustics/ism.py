@@ -29,23 +29,44 @@ CHUNK = 1 << 19  # images per chunk: bounds memory to a few tens of MB
 
 
 # --- image lattice -------------------------------------------------------------------
+# An image's key names it whatever the source's position: per axis (m, sign) of its
+# coordinate 2 m L ± s, packed as 2 (m + _M0) + (sign < 0) in _KEY_BITS bits, x highest.
+_KEY_BITS, _M0 = 21, 1 << 19
+
+
 def _axis_images(length: float, s: float, centre: float, radius: float):
-    """1-D image coordinates within ``radius`` of ``centre`` and their reflection counts."""
+    """1-D image coordinates within ``radius`` of ``centre``, their reflection counts and keys."""
     m_max = int(np.ceil((radius + abs(centre)) / (2.0 * length))) + 1
     m = np.arange(-m_max, m_max + 1)
     coords = np.concatenate([2.0 * m * length + s, 2.0 * m * length - s])
     counts = np.concatenate([np.abs(2 * m), np.abs(2 * m - 1)])
+    keys = np.concatenate([2 * (m + _M0), 2 * (m + _M0) + 1]).astype(np.int64)
     keep = np.abs(coords - centre) <= radius
-    return coords[keep], counts[keep]
+    return coords[keep], counts[keep], keys[keep]
+
+
+def image_positions(dims, keys: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """[N, K, 3]: where the images named by ``keys`` [N] (:func:`image_chunks`) are when
+    the source is at each of ``points`` [K, 3]."""
+    dims = np.asarray(dims, dtype=np.float64)
+    points = np.atleast_2d(np.asarray(points, dtype=np.float64))
+    out = np.empty((len(keys), len(points), 3))
+    for ax in range(3):
+        k = (np.asarray(keys, dtype=np.int64) >> (_KEY_BITS * (2 - ax))) & ((1 << _KEY_BITS) - 1)
+        m, sign = (k >> 1) - _M0, 1.0 - 2.0 * (k & 1)
+        out[:, :, ax] = (2.0 * m * dims[ax])[:, None] + sign[:, None] * points[None, :, ax]
+    return out
 
 
 def image_chunks(
-    dims, source, centre, radius: float, max_order: int | None = None, chunk: int = CHUNK
-) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    dims, source, centre, radius: float, max_order: int | None = None, chunk: int = CHUNK, keys: bool = False
+) -> Iterator[tuple[np.ndarray, ...]]:
     """Image sources of ``source`` within ``radius`` (m) of ``centre`` (room frame).
 
     Yields ``(positions [N, 3] float64, orders [N] int32)`` chunks of at most ``chunk``
-    images (the direct source is the image of order 0). Images with more than
+    images (the direct source is the image of order 0), with ``keys``
+    ``(positions, orders, keys [N] int64)``: a key names an image for any position of the
+    source (:func:`image_positions`; the direct source's is :data:`DIRECT_KEY`). Images with more than
     ``max_order`` reflections are skipped. Vectorised: the (x, y) pairs inside the
     sphere are enumerated on a grid, and for each pair the z images (sorted by distance
     from the centre) form a prefix whose length comes from one ``searchsorted``.
@@ -53,10 +74,10 @@ def image_chunks(
     dims = np.asarray(dims, dtype=np.float64)
     source = np.asarray(source, dtype=np.float64)
     centre = np.asarray(centre, dtype=np.float64)
-    (vx, nx), (vy, ny), (vz, nz) = (_axis_images(dims[i], source[i], centre[i], radius) for i in range(3))
+    (vx, nx, kx), (vy, ny, ky), (vz, nz, kz) = (_axis_images(dims[i], source[i], centre[i], radius) for i in range(3))
     dz = np.abs(vz - centre[2])
     order_z = np.argsort(dz, kind="stable")
-    vz, nz, dz = vz[order_z], nz[order_z], dz[order_z]
+    vz, nz, dz, kz = vz[order_z], nz[order_z], dz[order_z], kz[order_z]
 
     dxy2 = (vx - centre[0])[:, None] ** 2 + (vy - centre[1])[None, :] ** 2
     pair_ix, pair_iy = np.nonzero(dxy2 <= radius * radius)
@@ -78,12 +99,17 @@ def image_chunks(
         ix, iy = pair_ix[pid], pair_iy[pid]
         order = (nx[ix] + ny[iy] + nz[iz]).astype(np.int32)
         pos = np.stack([vx[ix], vy[iy], vz[iz]], axis=-1)
+        key = (kx[ix] << 2 * _KEY_BITS) | (ky[iy] << _KEY_BITS) | kz[iz] if keys else None
         if max_order is not None:
             keep = order <= max_order
             pos, order = pos[keep], order[keep]
+            key = key[keep] if keys else None
         if len(order):
-            yield pos, order
+            yield (pos, order, key) if keys else (pos, order)
         start = stop
+
+
+DIRECT_KEY = ((2 * _M0) << 2 * _KEY_BITS) | ((2 * _M0) << _KEY_BITS) | (2 * _M0)
 
 
 # --- fractional-delay rendering ------------------------------------------------------

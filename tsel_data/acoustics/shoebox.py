@@ -35,6 +35,7 @@ from ..errors import GeometryError
 from ..geometry import SOUND_SPEED
 from .base import RirSet
 from .capsules import capsule_model
+from .image_paths import image_groups, n_groups
 from .ism import FD_TAPS, decay_model, fd_energy_gain, image_chunks, model_edc
 from .metrics import decay_time, t30
 
@@ -57,6 +58,7 @@ def shoebox_rirs(
     length: float | None = None,
     one_source: bool = False,
     tail_apart: bool = False,
+    groups: int = 1,
 ) -> RirSet:
     """RIRs from room-frame ``points`` [S, 3] (m) to the channels of ``array``.
 
@@ -71,6 +73,10 @@ def shoebox_rirs(
     (independent tails, crossfaded between knots, would dip 3 dB at every midpoint).
     tail_apart: with ``one_source``, return that tail apart (``RirSet.tail`` [C, L]) and
     only the image-source parts in ``rirs`` [S, C, L_img] (L_img ≈ the transition + 50 ms).
+    groups: with ``tail_apart``, split each knot's image-source part into at most this
+    many groups of images that move alike (image_paths.py): ``rirs`` [S, G·C, L_img],
+    group-major, and ``RirSet.delays`` [S, G, C] each group's delay trajectory, to align
+    the group by between knots.
 
     Returns a :class:`RirSet` with float32 rirs [S, C, L] and ``rt60_measured`` = T30 of
     point 0, channel 0 (omni / W), or None when the response is too short to measure.
@@ -112,12 +118,31 @@ def shoebox_rirs(
     # and 50 ms for the DC blocker's response (time constant ~8 ms) to die out
     n_img = min(n_len, int(np.ceil((t_img + 0.05) * fs)) + FD_TAPS)
     apart = tail_apart and one_source and with_tail
-    rirs = np.zeros((len(points), model.n_channels, n_img if apart else n_len), dtype=np.float32)
+    C = model.n_channels
+    # a group's delay per channel, from its capsule; channels mixed from others (or
+    # coincident ones) all take the delay at the centre
+    where = mics if len(mics) == C else np.repeat(centre[None], C, axis=0)
+    grouped = image_groups(dims, points, where, centre, fs, radius, np.exp(-a), min(groups, n_groups(
+        len(points), C, n_img))) if apart and groups > 1 and len(points) > 1 else None
+    G = grouped.n_groups if grouped else 1
+    rirs = np.zeros((len(points), G * C, n_img if apart else n_len), dtype=np.float32)
     for s, p in enumerate(points):
-        grid = model.new_grid(n_img)
-        for pos, order in image_chunks(dims, p, centre, radius, max_order):
-            model.add(grid, pos, np.exp(-a * order), fade)
-        rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), model.render(grid), axis=-1)
+        if grouped is None:
+            grid = model.new_grid(n_img)
+            for pos, order in image_chunks(dims, p, centre, radius, max_order):
+                model.add(grid, pos, np.exp(-a * order), fade)
+            rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), model.render(grid), axis=-1)
+            continue
+        chunks = [(pos, np.exp(-a * order), grouped.of(key)) for pos, order, key in
+                  image_chunks(dims, p, centre, radius, max_order, keys=True)]
+        parts = np.empty((G * C, n_img))
+        for g in range(G):
+            grid = model.new_grid(n_img)  # one grid, reused: each group is rendered before the next
+            for pos, amp, group in chunks:
+                mine = group == g
+                model.add(grid, pos[mine], amp[mine], fade)
+            parts[g * C:(g + 1) * C] = model.render(grid)
+        rirs[s] = sosfilt(_dc_blocker(fs), parts)
 
     tail, first = None, rirs[0, 0]
     if with_tail:
@@ -126,11 +151,12 @@ def shoebox_rirs(
         if apart:
             tail = late[0]
             first = tail[0].copy()  # point 0's whole response: the same float32 sums as rirs += late
-            first[:n_img] += rirs[0, 0]
+            first[:n_img] += rirs[0, ::C].sum(axis=0) if G > 1 else rirs[0, 0]
         else:
             rirs += late
     measured = t30(first, fs) if max_order != 0 else float("nan")
-    return RirSet(rirs, None if np.isnan(measured) else measured, tail)
+    return RirSet(rirs, None if np.isnan(measured) else measured, tail,
+                  grouped.delays if grouped is not None else None)
 
 
 # --- absorption ---------------------------------------------------------------------

@@ -10,7 +10,7 @@ RIR_METHODS = values(RirMethod)
 
 
 def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: int = 0,
-                  one_source: bool = False, tail_apart: bool = False) -> RirSet:
+                  one_source: bool = False, tail_apart: bool = False, groups: int = 1) -> RirSet:
     """RIRs from room-frame points to an array's channels.
 
     Parameters
@@ -34,6 +34,9 @@ def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: in
         early parts in ``rirs`` (methods without a shared tail return whole RIRs and no
         tail). A moving source's tail does not move with it, so the renderer convolves it
         once (render.spatial_images).
+    groups : int
+        With ``tail_apart``: the image sources in up to this many groups that move alike,
+        each with its delay trajectory (``RirSet.delays``; shoebox methods only).
 
     Returns
     -------
@@ -42,8 +45,8 @@ def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: in
         ``tail`` (see ``tail_apart``) or None.
     """
     points = np.atleast_2d(np.asarray(points, dtype=np.float64))
-    # each method is imported when used: pyroomacoustics and scipy.signal are slow to
-    # import, and a process usually needs one method
+    # each method is imported when used: pyroomacoustics takes seconds to import, and a
+    # process usually needs one method
     if method == RirMethod.PYROOMACOUSTICS:
         from .pyroom import pyroom_rirs
 
@@ -52,5 +55,5 @@ def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: in
         from .shoebox import shoebox_rirs
 
         return shoebox_rirs(room, array, points, fs, method=method, seed=seed, one_source=one_source,
-                            tail_apart=tail_apart)
+                            tail_apart=tail_apart, groups=groups)
     raise ValueError(f"unknown RIR method {method!r}; expected one of {RIR_METHODS}")
