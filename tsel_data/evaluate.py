@@ -13,7 +13,9 @@ and relation (``relational:loudest``), and pairing (docs/queries.md).
 
 A group's MAE and accuracies (share of units with e ≤ 5°, 10°, 20°) pool its units.
 For a purely static or purely moving split this is exactly the paper's number; in a
-mixed group each moving scene contributes one unit per active frame.
+mixed group each moving scene contributes one unit per active frame, so the per-scene
+MAE (the mean of each scene's mean error) is given beside it. The DCASE SELD metrics of
+a DCASE-layout prediction: :mod:`tsel_data.evaluate_dcase`.
 
 Prediction file: JSON Lines, one object per scene of the split (docs/reader.md)::
 
@@ -84,13 +86,13 @@ class EvalResult:
         return d
 
     def format_text(self) -> str:
-        head = f"{'group':<32}{'scenes':>7}{'units':>8}{'MAE(deg)':>10}" + "".join(
+        head = f"{'group':<32}{'scenes':>7}{'units':>8}{'MAE(deg)':>10}{'per scene':>11}" + "".join(
             f"{'acc@' + format(t, 'g'):>9}" for t in THRESHOLDS)
         lines = [f"split {self.split}: mean absolute azimuth error of the target (wrap-around)", head]
 
         def row(name, r):
             accs = "".join(f"{100 * r[f'acc{int(t)}']:>8.1f}%" for t in THRESHOLDS)
-            return f"{name:<32}{r['scenes']:>7}{r['units']:>8}{r['mae']:>10.2f}{accs}"
+            return f"{name:<32}{r['scenes']:>7}{r['units']:>8}{r['mae']:>10.2f}{r['scene_mae']:>11.2f}{accs}"
 
         lines.append(row("all", self.overall))
         for title, groups in (("scenario", self.by_scenario), ("motion", self.by_motion), ("query", self.by_query),
@@ -199,9 +201,13 @@ def scene_errors(pred: Prediction, azimuth: np.ndarray, active: np.ndarray, movi
 
 
 def summarise(errors: list[np.ndarray]) -> dict:
-    """Pool units of several scenes -> {scenes, units, mae, acc5, acc10, acc20}."""
+    """Pool units of several scenes -> {scenes, units, mae, scene_mae, acc5, acc10, acc20}:
+    ``mae`` over units (the paper's), ``scene_mae`` the mean of each scene's mean error
+    (every scene weighs the same, a moving one as much as a static one)."""
     e = np.concatenate(errors) if errors else np.zeros(0)
-    row = {"scenes": len(errors), "units": int(e.size), "mae": float(e.mean()) if e.size else float("nan")}
+    means = [float(x.mean()) for x in errors if x.size]
+    row = {"scenes": len(errors), "units": int(e.size), "mae": float(e.mean()) if e.size else float("nan"),
+           "scene_mae": float(np.mean(means)) if means else float("nan")}
     for t in THRESHOLDS:
         row[f"acc{int(t)}"] = float((e <= t).mean()) if e.size else float("nan")
     return row
@@ -284,3 +290,4 @@ def write_predictions(path: str, rows) -> None:
         for r in rows:
             r = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in r.items()}
             f.write(json.dumps(r) + "\n")
+
