@@ -118,3 +118,12 @@ def test_cli_text_and_json(ds, tmp_path):
     assert doc["split"] == "test" and len(doc["per_scene"]) == 4
     # The moving target is scored per frame even with one azimuth for the clip.
     assert doc["by_motion"]["moving"]["units"] == 14
+
+
+@pytest.mark.parametrize("value, message", [("1e400", "infinity"), ("9" * 5000, "thousands of digits"),
+                                            ("[" * 100000 + "]" * 100000, "nested too deeply")])
+def test_numbers_no_prediction_holds_are_one_line(ds, tmp_path, value, message):
+    path = tmp_path / "p.jsonl"
+    path.write_text('{"scene_id": "test-000000", "azimuth": %s}\n' % value)
+    with pytest.raises(PredictionError, match=message):
+        evaluate(ds, "test", str(path))

@@ -125,6 +125,11 @@ def read_predictions(path: str) -> dict[str, Prediction]:
             obj = json.loads(line)
         except json.JSONDecodeError as e:
             raise PredictionError(f"{where}: not valid JSON ({e.msg})") from None
+        except ValueError:  # an integer of thousands of digits (Python refuses to convert it)
+            raise PredictionError(f"{where}: a number with thousands of digits; azimuths are degrees") from None
+        except RecursionError:
+            raise PredictionError(f"{where}: lists nested too deeply; an azimuth is a number, or a list of "
+                                  f"numbers per frame") from None
         p = parse_prediction(obj, where)
         p.line = n
         if p.scene_id in preds:
