@@ -285,3 +285,11 @@ def test_read_split_clips_names_the_manifest_folder(tmp_path):
     assert str(e.value) == (f"splits.val.manifest: valid.csv not found in {corpus} (it holds test.csv, train.csv, "
                             f"val.csv); set splits.val.manifest to the file's name, or pass the --corpus-dir that "
                             f"holds it")
+
+
+def test_a_nul_byte_in_a_clip_name_is_a_missing_file_not_a_crash(tmp_path):
+    from tsel_data.clipcache import file_key
+
+    (tmp_path / "ab.wav").write_bytes(b"")
+    assert file_key(str(tmp_path / "ab.wav"), "s") is not None
+    assert file_key(str(tmp_path / "a\x00b.wav"), "s") is None

@@ -108,6 +108,6 @@ def file_key(path: str, settings: str) -> tuple | None:
     cached: it is found missing again at the cost of one ``stat``)."""
     try:
         st = os.stat(path)
-    except OSError:
+    except (OSError, ValueError):  # ValueError: a NUL byte in the name (a clip id from a manifest): no such file
         return None
     return (os.path.abspath(path), st.st_size, st.st_mtime_ns, settings)
