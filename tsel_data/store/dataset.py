@@ -134,6 +134,16 @@ def dataset_doc(config: dict, seed: int, attrs: dict, splits: dict[str, list[Sha
                        for s, entries in splits.items()}}
 
 
+def _typed(value, kind: type, where: str, path: str, root: str):
+    """``value`` if it is a ``kind`` (an int for float; never a bool), else the DatasetError
+    of a hand-edited or damaged document: a scene count of "12" is not read as 12."""
+    ok = isinstance(value, (int, float) if kind is float else kind) and not isinstance(value, bool)
+    if not ok or (kind is int and value < 0):
+        raise DatasetError(f"{path}: {where} is {value!r}, not {'a count' if kind is int else kind.__name__}; the "
+                           f"file was edited or damaged: rerun `tsel finalize {root}`")
+    return value
+
+
 def load_dataset_doc(root: str) -> DatasetDoc:
     """Parse ``ROOT/dataset.json`` (DatasetError with a clear message if absent or bad)."""
     root = os.fspath(root)
@@ -154,9 +164,17 @@ def load_dataset_doc(root: str) -> DatasetDoc:
     try:
         splits, counts = {}, {}
         for name, s in doc["splits"].items():
-            splits[name] = [ShardEntry(str(e["file"]), str(e["json"]), int(e["scenes"]), str(e.get("sha256", "")),
-                                       str(e.get("json_sha256", ""))) for e in s.get("shards") or []]
-            counts[name] = int(s.get("scenes", 0))
+            shards = s.get("shards") or []
+            for k, e in enumerate(shards):
+                where = f"splits.{name}.shards[{k}]"
+                for key, kind in (("file", str), ("json", str), ("scenes", int), ("sha256", str), ("json_sha256", str)):
+                    if key in e or key in ("file", "json", "scenes"):
+                        _typed(e.get(key), kind, f"{where}.{key}", path, root)
+            splits[name] = [ShardEntry(e["file"], e["json"], e["scenes"], e.get("sha256", ""),
+                                       e.get("json_sha256", "")) for e in shards]
+            counts[name] = _typed(s.get("scenes", 0), int, f"splits.{name}.scenes", path, root)
+        _typed(doc.get("fs", 24000), int, "fs", path, root)
+        _typed(doc.get("label_hop", 0.1), float, "label_hop", path, root)
         return DatasetDoc(path=path, fs=int(doc.get("fs", 24000)), label_hop=float(doc.get("label_hop", 0.1)),
                           format=str(doc.get("format", "")), channel_names=list(doc.get("channel_names") or []),
                           config=doc.get("config") if isinstance(doc.get("config"), dict) else {},

@@ -172,8 +172,17 @@ def plan_ids(layout: Layout, split: str) -> list[str] | None:
     path = layout.plan_file(split)
     if not os.path.isfile(path):
         return None
-    with open(path, encoding="utf-8") as f:
-        return [json.loads(line)["scene_id"] for line in f if line.strip()]
+    ids = []
+    with open(path, encoding="utf-8", errors="replace") as f:
+        for n, line in enumerate(f, 1):
+            if not line.strip():
+                continue
+            try:
+                ids.append(str(json.loads(line)["scene_id"]))
+            except (ValueError, KeyError, TypeError):
+                raise DatasetError(f"{path}:{n}: a damaged plan line (not a scene recipe); the plan was edited or "
+                                   f"cut short: plan again into a new --out") from None
+    return ids
 
 
 def unfinished_doc(layout: Layout) -> DatasetDoc:

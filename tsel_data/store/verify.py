@@ -80,7 +80,11 @@ def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckRe
         if want is not None and n != want:
             rep.error(DatasetError(f"{layout.dataset_file}: split {split} holds {n} scenes but the config asks for "
                                    f"{want}; the dataset is incomplete: rerun `tsel generate ... --resume`"))
-        ids = plan_ids(layout, split)
+        try:
+            ids = plan_ids(layout, split)
+        except DatasetError as e:
+            rep.error(e)
+            ids = None
         if ids is not None and len(ids) != n:
             rep.error(DatasetError(f"{split}: the plan (plan/{split}.jsonl) has {len(ids)} scenes, the shards "
                                    f"{n}; rerun `tsel render {out_dir}` and `tsel finalize {out_dir}`"))
