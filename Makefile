@@ -5,6 +5,8 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
 DEMO_MOVING_OUT ?= demo-moving-out
+# pictures and audio of the demo dataset: beside it, never inside (docs/reliability.md)
+DEMO_VIEWS ?= demo-views
 
 # The baseline's torch: this machine holds the CPU wheel of 2.13.0; elsewhere set TORCH
 # (e.g. TORCH=torch for the registry's default build).
@@ -24,12 +26,13 @@ $(STAMP): pyproject.toml
 # sources from a small simulated RIR bank (FOA, rooms split by split).
 demo: $(STAMP)
 	$(BIN)/tsel generate --preset demo --out $(DEMO_OUT) --resume
-	$(BIN)/tsel stats $(DEMO_OUT) --png $(DEMO_OUT)/stats.png
-	$(BIN)/tsel inspect $(DEMO_OUT) test/0 --png $(DEMO_OUT)/test-000000.png --wav $(DEMO_OUT)/test-000000.wav
+	mkdir -p $(DEMO_VIEWS)
+	$(BIN)/tsel stats $(DEMO_OUT) --png $(DEMO_VIEWS)/stats.png
+	$(BIN)/tsel inspect $(DEMO_OUT) test/0 --png $(DEMO_VIEWS)/test-000000.png --wav $(DEMO_VIEWS)/test-000000.wav
 	$(BIN)/tsel verify $(DEMO_OUT)
 	$(BIN)/tsel generate --preset demo-moving --out $(DEMO_MOVING_OUT) --resume
 	$(BIN)/tsel bank info $(DEMO_MOVING_OUT)/demo-bank.h5
-	@echo "demo dataset in $(DEMO_OUT)/ (dataset.json; pictures: stats.png, test-000000.png)"
+	@echo "demo dataset in $(DEMO_OUT)/ (dataset.json); pictures and audio in $(DEMO_VIEWS)/ (stats.png, test-000000.png, test-000000.wav)"
 	@echo "moving-source demo dataset in $(DEMO_MOVING_OUT)/"
 
 # Two processes, one per core of the machines we test on (the suite's fixtures are built once per process).
@@ -59,4 +62,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_scaling.py
 
 clean:
-	rm -rf $(DEMO_OUT) $(DEMO_MOVING_OUT) $(BASELINE_OUT) .pytest_cache
+	rm -rf $(DEMO_OUT) $(DEMO_MOVING_OUT) $(DEMO_VIEWS) $(BASELINE_OUT) .pytest_cache

@@ -194,3 +194,24 @@ def make_sofa(path, rirs, positions, fs=24000, style="spatialscaper", listener=(
     ir[:] = rirs
     root.close()
     return Path(path)
+
+
+def make_native_bank(path, rooms=("roomA", "roomB"), fmt="mic4", fs=24000, n=36, dist=1.5, dims=(7.5, 6.0, 3.0),
+                     centre=(3.5, 3.0, 1.2), yaw=0.0, side=0.11):
+    """A plausible toolkit bank: per room one closed ring of ``n`` positions ``dist`` m
+    around an array at ``centre`` (room frame) of a ``dims`` room, random 64-tap RIRs,
+    the room info ``tsel bank build`` writes (dims, array centre, yaw and side). Damage it
+    afterwards with h5py to make implausible ones."""
+    from tsel_data.banks import MemoryBank, Trajectory
+    from tsel_data.banks.native import write_bank
+    from tsel_data.receivers import receiver
+
+    rng = np.random.default_rng(0)
+    az = np.arange(n) * 360.0 / n - 180.0
+    pos = np.stack([az, np.zeros(n), np.full(n, dist)], axis=1)
+    channels = len(receiver(fmt).channel_names)
+    items = {r: [(Trajectory(r, "0", "circular", pos, closed=True),
+                  (0.1 * rng.standard_normal((n, channels, 64))).astype(np.float32))] for r in rooms}
+    info = {r: {"dims": list(dims), "array": {"format": fmt, "centre": list(centre), "yaw": yaw,
+                                              "side": side if fmt == "mic4" else None}} for r in rooms}
+    return write_bank(path, MemoryBank(fs, fmt, items, info=info))

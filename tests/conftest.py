@@ -37,3 +37,36 @@ def small_config(demo_corpus):
                            splits=splits or {"train": 6, "val": 2, "test": 2})
 
     return make
+
+
+class InProcessCli:
+    """``tsel ARGS`` through the real entry point (tsel_data.cli:main), in this process,
+    its output captured: quicker than a subprocess, and what a user sees."""
+
+    def __init__(self, capsys):
+        self.capsys = capsys
+
+    def run(self, *argv) -> tuple[int, str, str]:
+        from tsel_data.cli import main
+
+        with pytest.raises(SystemExit) as ex:
+            main([str(a) for a in argv])
+        out = self.capsys.readouterr()
+        return ex.value.code, out.out, out.err
+
+    def ok(self, *argv) -> str:
+        code, out, err = self.run(*argv)
+        assert code == 0, err
+        return out
+
+    def refused(self, *argv) -> str:
+        """The one ``error:`` line of a command that must fail with exit 2."""
+        code, _, err = self.run(*argv)
+        lines = [x for x in err.splitlines() if x.strip()]
+        assert code == 2 and len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err, err
+        return lines[0]
+
+
+@pytest.fixture
+def tsel_cli(capsys):
+    return InProcessCli(capsys)

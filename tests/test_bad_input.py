@@ -262,7 +262,7 @@ def _bank(path, fs=24000, fmt="mic4", rooms=("roomA", "roomB"), nan_room=None, s
         items[r] = [(Trajectory(r, "0", "circular", p, closed=True),
                      rng.standard_normal((len(p), 4, 64)).astype(np.float32) * 0.1)]
     info = {r: {"array": {"format": fmt, "side": side if fmt == "mic4" else None}} for r in rooms}
-    write_bank(path, MemoryBank(fs, fmt, items, info=info))
+    write_bank(path, MemoryBank(fs, fmt, items, info=info), check=False)  # some cases are damaged on purpose
     return str(path)
 
 

@@ -50,7 +50,7 @@ def test_a_file_the_export_did_not_write_is_never_written_over(dataset, tmp_path
     export("webdataset", dataset, str(out), splits=["train"], card=False)
     (out / "test").mkdir()
     (out / "test" / "test-000000.tar").write_bytes(b"someone else's")
-    with pytest.raises(DatasetError, match=r"test-000000.tar exists and was not written by this export; .*--force"):
+    with pytest.raises(DatasetError, match=r"test-000000.tar already exists and was not written by tsel export .*--force"):
         export("webdataset", dataset, str(out), splits=["test"], card=False)
     assert (out / "test" / "test-000000.tar").read_bytes() == b"someone else's"
     export("webdataset", dataset, str(out), splits=["test"], card=False, force=True)

@@ -144,6 +144,12 @@ def stereo_path(path: str) -> str:
     return f"{os.path.splitext(path)[0]}.stereo.wav"
 
 
+def inspect_outputs(png: str | None = None, wav: str | None = None) -> list[str]:
+    """Every file :func:`inspect_scene` writes, so all can be claimed before any is
+    written (store/outputs.py)."""
+    return [p for p in (png, wav, wav and stereo_path(wav)) if p]
+
+
 def write_stereo(scene: Scene, path: str) -> str:
     """Write the mixture's headphone preview (:mod:`tsel_data.stereo`), float32."""
     if scene.audio is None:
@@ -327,12 +333,14 @@ def plot_scene(scene: Scene, path: str, dpi: int = 110) -> str:
     return path
 
 
-def inspect_scene(root: str, ref: str, split: str | None = None, png: str | None = None,
+def inspect_scene(root: str, ref: str | Scene, split: str | None = None, png: str | None = None,
                   wav: str | None = None, receiver: str | None = None) -> tuple[Scene, str]:
-    """Find a scene, optionally write its picture, its mixture (``wav``) and the
-    mixture's headphone preview (:func:`stereo_path`), as ``receiver`` heard it (default
-    the dataset's first); returns (scene, summary text)."""
-    scene = find_scene(root, ref, split, receiver)
+    """Find a scene (``ref``: an id, SPLIT/INDEX, or the Scene found already), optionally
+    write its picture, its mixture (``wav``) and the mixture's headphone preview
+    (:func:`stereo_path`), as ``receiver`` heard it (default the dataset's first);
+    returns (scene, summary text). The files are written as asked: the command claims
+    them first (:func:`inspect_outputs`, store/outputs.py)."""
+    scene = ref if isinstance(ref, Scene) else find_scene(root, ref, split, receiver)
     if png:
         plot_scene(scene, png)
     if wav:

@@ -65,6 +65,15 @@ def render_stems(recipe: SceneRecipe, mixture: np.ndarray | None = None,
     return (stems, same, parts.noise_stem(receiver)) if with_noise else (stems, same)
 
 
+def stem_paths(base: str, n_sources: int, noise: bool) -> list[str]:
+    """Where :func:`write_stems` puts the previews of a scene of ``n_sources`` (and its
+    ``noise``), beside the mixture written to ``base``: ``BASE.target.stereo.wav``,
+    ``BASE.interferer1.stereo.wav``, ..., ``BASE.noise.stereo.wav``."""
+    stem = os.path.splitext(base)[0]
+    names = ["target" if k == 0 else f"interferer{k}" for k in range(n_sources)]
+    return [f"{stem}.{name}.stereo.wav" for name in names + (["noise"] if noise else [])]
+
+
 def write_stems(root: str, scene, base: str, corpus_dir: str | None = None,
                 bank: str | None = None) -> tuple[list[str], bool]:
     """Write a headphone preview of each source alone next to ``base`` (a WAV path):
@@ -80,15 +89,9 @@ def write_stems(root: str, scene, base: str, corpus_dir: str | None = None,
     poses = (recipe.array, *recipe.receivers)
     which = next((k for k, p in enumerate(poses) if p.format == scene.format), 0)  # the receiver the scene was read for
     stems, same, noise = render_stems(recipe, scene.audio, roots, which, with_noise=True)
-    stem = os.path.splitext(base)[0]
-    paths = []
-    for k, src in enumerate(recipe.sources):
-        name = "target" if k == 0 else f"interferer{k}"
-        path = f"{stem}.{name}.stereo.wav"
-        save_wav(path, stereo_preview(stems[k], poses[which].format, poses[which].mics()).T, recipe.fs)
-        paths.append(path)
-    if noise is not None:  # what is not a source: ambience, diffuse noise, babble, sensor noise
-        path = f"{stem}.noise.stereo.wav"
-        save_wav(path, stereo_preview(noise, poses[which].format, poses[which].mics()).T, recipe.fs)
-        paths.append(path)
+    # what is not a source (ambience, diffuse noise, babble, sensor noise) comes last
+    parts = [*stems[:len(recipe.sources)], *([noise] if noise is not None else [])]
+    paths = stem_paths(base, len(recipe.sources), noise is not None)
+    for path, part in zip(paths, parts):
+        save_wav(path, stereo_preview(part, poses[which].format, poses[which].mics()).T, recipe.fs)
     return paths, same

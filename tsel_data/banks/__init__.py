@@ -10,8 +10,9 @@ toolkit's own HDF5 format, in-memory banks) has the same interface, :class:`Bank
 
 Import order inside the package (each module imports only those above it)::
 
-    base            Bank, Trajectory, MemoryBank, check_format
+    base            Bank, Trajectory, MemoryBank, check_format, check_rate
     _h5, paths      HDF5 reading helpers; walks along trajectories
+    plausible       whether a room's positions and RIR shapes can be trusted
     tau, sofa, native   one module per file format
     kinds           open_bank: guess the kind of a path and open it
     build           simulated banks (the shoebox simulator), the demo bank

@@ -204,6 +204,21 @@ def _range(v) -> list:
     return [round(float(v.min()), 3), round(float(v.max()), 3)] if v.size else [None, None]
 
 
+MIN_RATE, MAX_RATE = 1000, 1_000_000  # Hz: what an RIR can be sampled at
+
+
+def check_rate(value, where: str) -> int:
+    """A bank's sample rate as an integer number of Hz; BankError (naming ``where``) for
+    anything else: NaN, 0, text, a fraction, a rate no RIR is sampled at."""
+    v = np.asarray(value)
+    fs = float(v.reshape(-1)[0]) if v.size == 1 and v.dtype.kind in "iuf" else float("nan")
+    if not (np.isfinite(fs) and MIN_RATE <= fs <= MAX_RATE and abs(fs - round(fs)) < 1e-6):
+        shown = v.reshape(-1).tolist()[0] if v.size == 1 else value
+        raise BankError(f"{where}: the sample rate is {shown!r}, not a rate in Hz ({MIN_RATE}..{MAX_RATE}); the bank "
+                        f"is damaged: re-import or rebuild it")
+    return int(round(fs))
+
+
 def check_format(fmt: str, where: str = "") -> str:
     """A receiver's own name for ``fmt`` (TAU's ``mic`` is our ``tetra``: receivers' aliases)."""
     f = canonical(fmt)

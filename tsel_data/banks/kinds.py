@@ -12,7 +12,7 @@ from ..h5str import as_str
 from .base import Bank, check_format
 from .native import NativeBank, is_native_bank
 from .sofa import SofaBank
-from .tau import TauBank
+from .tau import TauBank, is_tau_folder
 
 
 def open_bank(path_or_dir, kind: str = "auto", format: str | None = None, **options) -> Bank:
@@ -51,11 +51,11 @@ def open_bank(path_or_dir, kind: str = "auto", format: str | None = None, **opti
 
 def _guess_kind(p: Path) -> str:
     if p.is_dir():
-        if (p / "rirdata.mat").exists():
+        if is_tau_folder(p):
             return "tau"
         if any(p.glob("*.sofa")):
             return "sofa"
-        if (p / "TAU-SRIR_DB" / "rirdata.mat").exists():
+        if is_tau_folder(p / "TAU-SRIR_DB"):
             raise BankError(f"{p}: this holds TAU-SRIR_DB/; point at {p / 'TAU-SRIR_DB'} instead")
         raise BankError(f"{p}: not an RIR bank directory (no rirdata.mat of the TAU-SRIR DB, no .sofa files)")
     suffix = p.suffix.lower()

@@ -22,9 +22,10 @@ import h5py
 import numpy as np
 
 from ..errors import BankError
-from ..h5str import as_strs
-from .base import Bank, Trajectory, check_format
+from ..h5str import as_str, as_strs
+from .base import Bank, Trajectory, check_format, check_rate
 from ._h5 import H5Pool, read_rows
+from .plausible import positions_problem, rirs_problem
 
 VERSION = 1
 
@@ -54,28 +55,12 @@ class NativeBank(Bank):
                 raise BankError(f"{self.path}: not a tsel RIR bank (no tsel_bank attribute); convert with `tsel bank import`")
             if int(f.attrs["tsel_bank"]) > VERSION:
                 raise BankError(f"{self.path}: bank format version {int(f.attrs['tsel_bank'])} is newer than this toolkit reads ({VERSION})")
-            self.fs = int(f.attrs["fs"])
-            self.format = check_format(str(f.attrs["format"]), f"{self.path}: ")
-            self.channel_names = tuple(json.loads(f.attrs["channel_names"]))
-            self.provenance = json.loads(f.attrs.get("provenance", "{}"))
+            self.fs = check_rate(f.attrs.get("fs"), str(self.path))
+            self.format = check_format(as_str(f.attrs.get("format", "")), f"{self.path}: ")
+            self.channel_names = tuple(_json_attr(f.attrs, "channel_names", list, str(self.path)))
+            self.provenance = _json_attr(f.attrs, "provenance", dict, str(self.path), "{}")
             self.rooms = list(f["rooms"].keys()) if "rooms" in f else []
-            self._meta = {}
-            for r in self.rooms:
-                g = f["rooms"][r]
-                for name in ("rirs", "positions", "traj_ids", "traj_offsets"):
-                    if name not in g:
-                        raise BankError(f"{self.path}: room {r} lacks {name}; the bank is incomplete")
-                pos = g["positions"][()]
-                off = g["traj_offsets"][()]
-                ids = as_strs(g["traj_ids"][()])
-                kinds = as_strs(g["traj_kinds"][()])
-                closed = g["traj_closed"][()] if "traj_closed" in g else np.zeros(len(ids), bool)
-                trajs = [Trajectory(r, ids[t], kinds[t], pos[off[t] : off[t + 1]], bool(closed[t])) for t in range(len(ids))]
-                self._meta[r] = {
-                    "trajectories": trajs,
-                    "offset": {ids[t]: int(off[t]) for t in range(len(ids))},
-                    "info": json.loads(g.attrs.get("info", "{}")),
-                }
+            self._meta = {r: _room_meta(f["rooms"][r], r, f"{self.path}: room {r}") for r in self.rooms}
         self._h5 = H5Pool()
 
     def trajectories(self, room):
@@ -101,19 +86,79 @@ class NativeBank(Bank):
         self._h5.close()
 
 
+DAMAGED = "the bank is damaged: re-import or rebuild it"
+ROOM_DATASETS = ("rirs", "positions", "traj_ids", "traj_kinds", "traj_offsets")
+
+
+def _room_meta(g, room: str, where: str) -> dict:
+    """A room's trajectories and info, once its datasets are known to fit together (each
+    problem one BankError naming the room: render would crash on it, or read the wrong RIRs)."""
+    for name in ROOM_DATASETS:
+        if name not in g:
+            raise BankError(f"{where} lacks {name}; the bank is incomplete")
+    rirs = g["rirs"]
+    if rirs.ndim != 3:
+        raise BankError(f"{where}: RIRs of shape {rirs.shape}, expected [N, channels, samples]; {DAMAGED}")
+    try:
+        pos = np.asarray(g["positions"][()], dtype=np.float64)
+        off = np.asarray(g["traj_offsets"][()], dtype=np.int64).reshape(-1)
+    except (TypeError, ValueError):
+        raise BankError(f"{where}: positions or traj_offsets are not numbers; {DAMAGED}") from None
+    if pos.ndim != 2 or pos.shape[1] != 3:
+        raise BankError(f"{where}: positions of shape {pos.shape}, expected [N, 3] (azimuth, elevation, distance); "
+                        f"{DAMAGED}")
+    if rirs.shape[0] != len(pos):
+        raise BankError(f"{where}: {rirs.shape[0]} RIRs for {len(pos)} positions; {DAMAGED}")
+    ids, kinds = as_strs(g["traj_ids"][()]), as_strs(g["traj_kinds"][()])
+    closed = (np.asarray(g["traj_closed"][()], dtype=bool).reshape(-1) if "traj_closed" in g
+              else np.zeros(len(ids), bool))
+    if (len(off) != len(ids) + 1 or len(kinds) != len(ids) or len(closed) != len(ids) or off[0] != 0
+            or off[-1] != len(pos) or np.any(np.diff(off) < 0)):
+        raise BankError(f"{where}: its {len(ids)} trajectories (traj_ids, traj_kinds, traj_closed, traj_offsets "
+                        f"{off.tolist()[:4]}{'...' if len(off) > 4 else ''}) do not cover its {len(pos)} positions; "
+                        f"{DAMAGED}")
+    return {
+        "trajectories": [Trajectory(room, ids[t], kinds[t], pos[off[t]: off[t + 1]], bool(closed[t]))
+                         for t in range(len(ids))],
+        "offset": {ids[t]: int(off[t]) for t in range(len(ids))},
+        "info": _json_attr(g.attrs, "info", dict, where, "{}"),
+    }
+
+
+def _json_attr(attrs, name: str, kind: type, where: str, default: str | None = None):
+    """A JSON attribute, of the type it must have."""
+    text = attrs.get(name, default)
+    if text is None:
+        raise BankError(f"{where}: no {name}; {DAMAGED}")
+    try:
+        value = json.loads(as_str(text))
+    except ValueError as e:
+        raise BankError(f"{where}: {name} is not JSON ({e}); {DAMAGED}") from None
+    if not isinstance(value, kind):
+        want = "an object" if kind is dict else "a list"
+        raise BankError(f"{where}: {name} is {type(value).__name__} JSON, expected {want}; {DAMAGED}")
+    return value
+
+
 def write_bank(path, bank: Bank, rooms=None, provenance: dict | None = None, progress=None,
-               overwrite: bool = False) -> Path:
+               overwrite: bool = False, check: bool = True) -> Path:
     """Write ``bank`` (any kind) to ``path`` in the native format, one trajectory at a time.
 
     rooms: names or numbers to keep (default all). provenance: JSON-able facts stored
     in the file (source, command, seed...). overwrite: replace an existing file (refused
-    otherwise). The file is written under a temporary name and renamed when whole; a
-    failed write is one BankError line naming the file. Returns the path.
+    otherwise). check: refuse, before writing, a room whose positions or RIR shapes cannot
+    be trusted (banks/plausible.py; tests turn it off to write damaged banks). The file
+    is written under a temporary name and renamed when whole; a failed write is one
+    BankError line naming the file. Returns the path.
     """
     path = Path(path)
     if path.exists() and not overwrite:
         raise BankError(f"{path} already exists; choose another --out, or pass --force to replace it")
     names = [bank.resolve_room(r) for r in rooms] if rooms else list(bank.rooms)
+    for room in names if check else ():
+        problem = positions_problem(bank, room) or rirs_problem(bank, room, content=False)
+        if problem:
+            raise problem
     tmp = path.with_name(path.name + ".tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -10,12 +10,11 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from ..errors import BankError, ConfigError, TselError
 from ..receivers import receiver
 from .build import DEMO, build_bank
 from .kinds import open_bank
+from .plausible import positions_problem, rirs_problem
 
 BUILTIN_DEMO_BANK = "builtin:demo-bank"
 
@@ -94,8 +93,8 @@ def split_rooms(bank, rooms: dict, split: str) -> list[str]:
 def bank_problems(req: BankRequest) -> list[TselError]:
     """Problems with the requested bank, all of them: missing or unreadable bank, array
     format or sample rate differing from the scenes', active splits' rooms the bank lacks
-    or that two splits share, no room left for an unlisted split, rooms without
-    trajectories, missing or non-finite positions, mic4 rooms without the array's side
+    or that two splits share, no room left for an unlisted split, rooms whose positions
+    or RIRs cannot be trusted (banks/plausible.py), mic4 rooms without the array's side
     length. ``builtin:demo-bank`` has none (it is built to match)."""
     if not req.path or req.path == BUILTIN_DEMO_BANK:
         return []
@@ -142,60 +141,19 @@ def bank_problems(req: BankRequest) -> list[TselError]:
             except ConfigError as e:
                 out.append(e)
         for room in used:
-            e = _room_positions_problem(bank, room) or _room_rirs_problem(bank, room)
+            e = positions_problem(bank, room) or _side_problem(bank, room) or rirs_problem(bank, room)
             if e:
                 out.append(e)
     return out
 
 
-RIR_SAMPLES_PER_TRAJECTORY = 8  # RIRs read per trajectory to judge a room (a damaged bank is damaged throughout)
-
-
-def _room_rirs_problem(bank, room: str) -> TselError | None:
-    """RIRs that would make silent or NaN scenes: empty, non-finite or all zero, judged on
-    a few RIRs spread along every trajectory (render names any the sample missed)."""
-    for t in bank.trajectories(room):
-        idx = np.unique(np.linspace(0, len(t) - 1, min(len(t), RIR_SAMPLES_PER_TRAJECTORY)).astype(int))
-        try:
-            rirs = bank.read(room, t.id, idx)
-        except TselError as e:
-            return e
-        where = f"{bank.source}: room {room} trajectory {t.id}"
-        if rirs.shape[-1] == 0:
-            return BankError(f"{where}: the RIRs are empty (length 0); re-import the bank or drop the room")
-        finite = np.isfinite(rirs).all(axis=(1, 2))
-        if not finite.all():
-            return BankError(f"{where}: RIR {int(idx[np.argmin(finite)])} holds NaN or Inf; re-import the bank or drop "
-                             f"the room")
-        silent = ~np.any(rirs != 0, axis=(1, 2))
-        if silent.any():
-            return BankError(f"{where}: RIR {int(idx[np.argmax(silent)])} is all zero; re-import the bank or drop the "
-                             f"room")
-    return None
-
-
-def _room_positions_problem(bank, room: str) -> TselError | None:
-    try:
-        trajs = bank.trajectories(room)
-    except TselError as e:
-        return e
-    if not trajs or sum(len(t) for t in trajs) == 0:
-        return BankError(f"{bank.source}: room {room} has no RIR positions (no trajectories); re-import the room or "
-                         f"remove it from the split's rooms")
-    if receiver(bank.format).size_key == "side":
-        side = (bank.room_info(room).get("array") or {}).get("side")
-        if not isinstance(side, (int, float)) or not side > 0:
-            # a sized array's mic positions (labels' mic_positions) need its side length
-            return BankError(f"{bank.source}: room {room} is a {bank.format} room without the array's side length "
-                             f"(room info array.side); rebuild it with `tsel bank build` or add the side to its info")
-    for t in trajs:
-        p = np.asarray(t.positions, dtype=np.float64)
-        if p.ndim != 2 or p.shape[1] != 3 or len(p) == 0:
-            return BankError(f"{bank.source}: room {room} trajectory {t.id}: positions missing (shape {p.shape}, "
-                             f"expected [N, 3] azimuth, elevation, distance); re-import the bank")
-        bad = ~np.all(np.isfinite(p), axis=1) | (p[:, 2] <= 0)
-        if bad.any():
-            return BankError(f"{bank.source}: room {room} trajectory {t.id}: {int(bad.sum())} of {len(p)} positions "
-                             f"missing or invalid (first at index {int(np.argmax(bad))}: {p[np.argmax(bad)].tolist()}); "
-                             f"re-import the bank or drop the room")
-    return None
+def _side_problem(bank, room: str) -> TselError | None:
+    """A sized array's mic positions (labels' mic_positions) need its side length."""
+    if receiver(bank.format).size_key != "side":
+        return None
+    array = bank.room_info(room).get("array")
+    side = array.get("side") if isinstance(array, dict) else None
+    if isinstance(side, (int, float)) and side > 0:
+        return None
+    return BankError(f"{bank.source}: room {room} is a {bank.format} room without the array's side length "
+                     f"(room info array.side); rebuild it with `tsel bank build` or add the side to its info")

@@ -36,7 +36,7 @@ from ..geometry import cart_to_sph, sph_to_cart
 from ..receivers import canonical, receiver
 from ..errors import BankError
 from ..h5str import as_str
-from .base import Bank, Trajectory, check_format
+from .base import Bank, Trajectory, check_format, check_rate
 from ._h5 import H5Pool, read_rows
 from .paths import angular_steps
 from .tau import TAU_ROOM_NUMBERS
@@ -110,7 +110,7 @@ class SofaBank(Bank):
         M, R, _ = ir.shape
         if "Data.SamplingRate" not in f:
             raise BankError(f"{path}: no Data.SamplingRate")
-        fs = float(np.asarray(f["Data.SamplingRate"][()]).reshape(-1)[0])
+        fs = check_rate(f["Data.SamplingRate"][()], f"{path}: Data.SamplingRate")
         if "SourcePosition" not in f:
             raise BankError(f"{path}: no SourcePosition; positions missing")
         src = _positions(f["SourcePosition"], M, path)
@@ -132,7 +132,7 @@ class SofaBank(Bank):
             "path": path,
             "room": room,
             "format": check_format(fmt) if fmt else None,
-            "fs": int(round(fs)),
+            "fs": fs,
             "channels": int(R),
             "positions": np.stack([az, el, dist], axis=-1),
             "number": TAU_ROOM_NUMBERS.get(room),

@@ -41,6 +41,7 @@ Room numbers (used for the DCASE/paper splits): 1 bomb_shelter, 2 gym, 3 pb132,
 """
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -49,7 +50,7 @@ import numpy as np
 from ..geometry import cart_to_sph
 from ..receivers import receiver
 from ..errors import BankError
-from .base import Bank, Trajectory, check_format
+from .base import Bank, Trajectory, check_format, check_rate
 from ._h5 import H5Pool, read_rows
 from .paths import angular_steps
 
@@ -62,6 +63,12 @@ _RIR_FILE = re.compile(r"^rirs_(\d+)_(.+)\.mat$")
 
 # the DB's own field name for each receiver it was measured with
 TAU_FIELDS = {"foa": "foa", "tetra": "mic"}
+INDEX_FILE = "rirdata.mat"  # what makes a folder the TAU-SRIR DB
+
+
+def is_tau_folder(path) -> bool:
+    """Whether ``path`` is a TAU-SRIR DB folder as distributed."""
+    return os.path.isfile(os.path.join(path, INDEX_FILE))
 
 
 class TauBank(Bank):
@@ -91,7 +98,7 @@ class TauBank(Bank):
             mi = scipy.io.loadmat(self.root / "measinfo.mat", struct_as_record=True, squeeze_me=False)["measinfo"]
         except (KeyError, ValueError, OSError, NotImplementedError) as e:
             raise BankError(f"{self.root}: rirdata.mat/measinfo.mat are not the TAU-SRIR DB's ({e})") from None
-        self.fs = int(_scalar(rd["fs"])) if "fs" in rd.dtype.names else 24000
+        self.fs = check_rate(rd["fs"], f"{self.root}/rirdata.mat") if "fs" in rd.dtype.names else 24000
         entries = rd["room"].reshape(-1)
         meas = mi.reshape(-1)
         files = {}
@@ -224,10 +231,6 @@ def _selection(rows: np.ndarray):
     if len(rows) == 1:
         return slice(int(rows[0]), int(rows[0]) + 1)
     return rows.tolist()
-
-
-def _scalar(v):
-    return np.asarray(v).reshape(-1)[0]
 
 
 def _text(v) -> str:

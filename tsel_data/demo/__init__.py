@@ -9,10 +9,10 @@ the sound models.
 """
 from .sounds import SOUND_TYPES, TYPES_BY_NAME, SoundType
 from .synth import (CAPTIONS_PER_CLIP, CSV_HEADER, SPLITS, ClipFormat, ClipSpec,
-                    plan_corpus, render_clip, synth_corpus, youtube_id)
+                    corpus_files, plan_corpus, render_clip, synth_corpus, youtube_id)
 
 __all__ = [
     "SOUND_TYPES", "TYPES_BY_NAME", "SoundType", "CAPTIONS_PER_CLIP", "CSV_HEADER",
-    "SPLITS", "ClipFormat", "ClipSpec", "plan_corpus", "render_clip", "synth_corpus",
+    "SPLITS", "ClipFormat", "ClipSpec", "corpus_files", "plan_corpus", "render_clip", "synth_corpus",
     "youtube_id",
 ]

@@ -226,11 +226,20 @@ def _check_args(seed, clips_per_type) -> tuple[int, tuple[int, int, int]]:
     return int(seed), counts
 
 
+def corpus_files(out_dir, seed: int = 0, clips_per_type=(4, 1, 1)) -> list[str]:
+    """Every file :func:`synth_corpus` writes into ``out_dir``, without writing any."""
+    seed, counts = _check_args(seed, clips_per_type)
+    out = Path(out_dir)
+    return [str(p) for p in (*(out / "audio" / f"{c.youtube_id}.wav" for c in plan_corpus(seed, counts)),
+                             *(out / f"{s}.csv" for s in SPLITS), out / "clips.json", out / "README.txt")]
+
+
 def synth_corpus(out_dir, seed: int = 0, clips_per_type=(4, 1, 1)) -> dict:
     """Synthesise the demo corpus into ``out_dir`` (created if needed).
 
     out_dir:        output folder; existing files of the same names are replaced,
-                    other files are left alone.
+                    other files are left alone (``tsel corpus synth`` claims them
+                    first: :func:`corpus_files`, store/outputs.py).
     seed:           integer >= 0; the corpus is a pure function of (seed, clips_per_type).
     clips_per_type: clips of every sound type in (train, val, test).
 

@@ -3,14 +3,18 @@ splits into a folder the export owns.
 
 An export folder says whose it is in ``.tsel-export.json`` (:data:`MANIFEST_FILE`): the
 writer, the dataset (relative to the folder), the options that make two exports
-incompatible (:meth:`Writer.identity`) and every file it wrote, per split. So:
+incompatible (:meth:`Writer.identity`) and every file it wrote, per split, with the size
+and modification time it left (store/outputs.py's stamps). So:
 
 - a folder that holds other files (no manifest), or an export of another writer,
   dataset or identity, is refused in one line; ``force`` replaces it (an earlier
   export's files are removed first; other files of the same names are written over);
 - exporting some splits into an export of the same kind replaces those splits (their
   files not written again are removed) and keeps the others;
-- a file the export did not write is never written over (unless ``force``);
+- a file the export did not write, or one changed since it wrote it, is never written
+  over (unless ``force``) nor removed;
+- ``--out`` is never a dataset, nor inside a dataset, another export or a bank folder
+  (the dataset exported, never; the others unless ``force``);
 - every file is claimed in ``.tsel-export.journal`` before it is written and written
   under a temporary name, so an interrupted export is still known as ours: running it
   again finishes it.
@@ -31,14 +35,16 @@ from ..atomic import atomic_output, write_json, write_text
 from ..errors import DatasetError, TselError
 from ..progress import bar
 from ..store.dataset import DatasetDoc, load_dataset_doc
+from ..store.layout import EXPORT_MANIFEST_FILE, Layout
+from ..store.outputs import foreign_file, refuse_inside, stamp
 from ..stats import dataset_stats
 from ..store.reader import SceneDataset, open_dataset
 from ..version import __version__
 from .card import FIGURE_FILE, CARD_FILE, card_text, draw_figure
 
-MANIFEST_FILE = ".tsel-export.json"
+MANIFEST_FILE = EXPORT_MANIFEST_FILE
 JOURNAL_FILE = ".tsel-export.journal"
-MANIFEST_VERSION = 1
+MANIFEST_VERSION = 2  # 2: stamps of the files (version 1 manifests own their files by name)
 
 
 @dataclass(frozen=True)
@@ -160,6 +166,7 @@ class ExportJob:
         self.identity = {"kind": writer.name, "dataset": _portable(root, out), **writer.identity(self.doc)}
         self.earlier = _earlier(out, writer, self.identity, root, force)
         self._ours = _files_of(self.earlier) | _journal(out)
+        self._stamps = dict((self.earlier or {}).get("stamps") or {})
         self._claimed: set = set()
         self._journal = None
         self._current = ""
@@ -188,13 +195,38 @@ class ExportJob:
         is there that no export of this kind wrote (unless ``force``)."""
         full = os.path.join(self.out, rel)
         if rel not in self._claimed:
-            if os.path.lexists(full) and rel not in self._ours and not self.force:
-                raise DatasetError(f"{full} exists and was not written by this export; move it away, export into "
-                                   f"another --out, or pass --force to write over it")
+            self.check_free(rel)
             self._journal_line(rel)
             self._claimed.add(rel)
         os.makedirs(os.path.dirname(full), exist_ok=True)
         return full
+
+    def check_free(self, rel: str) -> None:
+        """A DatasetError unless ``rel`` may be written: absent, this export's own, or ``force``
+        (a writer calls it in :meth:`Writer.check` for files it writes last)."""
+        if os.path.lexists(os.path.join(self.out, rel)) and not self.force:
+            why = self._not_ours(rel)
+            if why:
+                raise foreign_file(os.path.join(self.out, rel), why)
+
+    def owns(self, rel: str) -> bool:
+        """Whether ``rel`` is there as this export (or an earlier one of its kind) left it."""
+        return os.path.lexists(os.path.join(self.out, rel)) and self._not_ours(rel) is None
+
+    def _not_ours(self, rel: str) -> str | None:
+        """Why the file ``rel`` is not this export's to replace or remove (None: it is).
+        A file claimed by an interrupted run has no stamp yet: its name is enough."""
+        if rel not in self._ours:
+            return f"was not written by tsel export {self.writer.name}"
+        known = self._stamps.get(rel)
+        if known is not None and known != stamp(os.path.join(self.out, rel)):
+            return f"changed since tsel export {self.writer.name} wrote it"
+        return None
+
+    def _remove(self, rels) -> None:
+        """Remove files of an earlier export that this one does not write again; one
+        changed since is someone's now, and stays (unlisted)."""
+        _remove(self.out, {rel for rel in rels if self.force or not self._not_ours(rel)})
 
     @contextmanager
     def output(self, rel: str):
@@ -237,7 +269,7 @@ class ExportJob:
         """Claim the folder: files an interrupted run left of splits it did not finish go
         (they would be rewritten anyway), then the manifest says whose the folder is."""
         os.makedirs(self.out, exist_ok=True)
-        _remove(self.out, _journal(self.out) - _files_of(self.earlier))
+        self._remove(_journal(self.out) - _files_of(self.earlier))
         self._ours = _files_of(self.earlier)
         self._write_manifest(complete=False)
         self._journal = open(os.path.join(self.out, JOURNAL_FILE), "w", encoding="utf-8")
@@ -248,7 +280,7 @@ class ExportJob:
         anew), and the manifest records the split."""
         self._current = split
         result = self.writer.write_split(self, split)
-        _remove(self.out, set(self._split_files.get(split, ())) - set(result.files))
+        self._remove(set(self._split_files.get(split, ())) - set(result.files))
         self.summaries[split] = result.summary
         self._split_files[split] = list(result.files)
         self._current = ""  # the manifest is written at the end: until then the journal knows what is ours
@@ -256,7 +288,7 @@ class ExportJob:
 
     def end(self, shared: list) -> None:
         """The manifest, complete; shared files an earlier export wrote and this one did not go."""
-        _remove(self.out, set((self.earlier or {}).get("files") or ()) - set(shared))
+        self._remove(set((self.earlier or {}).get("files") or ()) - set(shared))
         self._shared = list(shared)
         self._write_manifest(complete=True)
         self._journal.close()
@@ -272,9 +304,21 @@ class ExportJob:
 
     def _write_manifest(self, complete: bool) -> None:
         shared = self._shared if self._shared is not None else list((self.earlier or {}).get("files") or ())
+        splits = self._manifest_splits()
+        listed = [*shared, *(rel for v in splits.values() for rel in v["files"])]
         write_json(os.path.join(self.out, MANIFEST_FILE), {
             "tool": "tsel-data", "version": __version__, "manifest_version": MANIFEST_VERSION,
-            "identity": self.identity, "complete": complete, "splits": self._manifest_splits(), "files": shared})
+            "identity": self.identity, "complete": complete, "splits": splits, "files": shared,
+            "stamps": self._stamps_of(listed)})
+
+    def _stamps_of(self, rels: list) -> dict:
+        """The stamps of the files listed: as written now, or as an earlier export left them."""
+        out = {}
+        for rel in rels:
+            known = stamp(os.path.join(self.out, rel)) if rel in self._claimed else self._stamps.get(rel)
+            if known is not None:
+                out[rel] = known
+        return out
 
 
 class Shards:
@@ -330,9 +374,12 @@ def run_export(writer: Writer, root: str, out: str, splits=None, force: bool = F
     for s in splits:
         if s not in all_splits:
             raise DatasetError(f"{root}: no split {s!r}; available splits: {', '.join(all_splits)}")
-    _check_places(root, out)
+    _check_places(root, out, force)
     job = ExportJob(writer, root, out, splits, force, progress)
     writer.check(job)
+    for rel, wanted in ((CARD_FILE, writer.opts["card"]), (FIGURE_FILE, writer.opts["figure"])):
+        if wanted:  # written last: refused before the splits, not after
+            job.check_free(rel)
     job.begin()
     results = {split: job.write_split(split) for split in splits}
     shared = writer.finish(job)
@@ -341,7 +388,7 @@ def run_export(writer: Writer, root: str, out: str, splits=None, force: bool = F
                         {s: r.files for s, r in results.items()}, shared)
 
 
-def _check_places(root: str, out: str) -> None:
+def _check_places(root: str, out: str, force: bool) -> None:
     r, o = os.path.realpath(root), os.path.realpath(out)
     if o == r:
         raise DatasetError(f"--out {out} is the dataset itself; choose a new folder")
@@ -349,6 +396,9 @@ def _check_places(root: str, out: str) -> None:
         raise DatasetError(f"--out {out} is inside the dataset {root}; choose a folder outside it")
     if os.path.isfile(out):
         raise DatasetError(f"--out {out} is a file; choose a folder")
+    if Layout(out).is_ours():
+        raise DatasetError(f"--out {out} is a dataset; export into a folder of its own")
+    refuse_inside(out, force, "--out ")
 
 
 def _portable(root: str, out: str) -> str:

@@ -94,6 +94,8 @@ class DcaseWriter(Writer):
             if job.fold(split) > 9:
                 raise DatasetError(f"{job.root}: split {split!r} would be fold {job.fold(split)}; DCASE names hold "
                                    f"one digit (1-9)")
+        for rel in (QUERIES_FILE, CLASSES_FILE):  # written last: refused before the audio, not after
+            job.check_free(rel)
 
     def write_split(self, job, split: str) -> SplitResult:
         subtype, fold = self.opts["subtype"], job.fold(split)
@@ -122,7 +124,8 @@ class DcaseWriter(Writer):
                                    "metadata_dir": meta_dir})
 
     def finish(self, job) -> list:
-        rows = [r for r in _read_queries(job.out) if r[1] not in self.queries and r[1] in job.summaries]
+        earlier = _read_queries(job.out) if job.owns(QUERIES_FILE) else []  # another's file is not read (--force)
+        rows = [r for r in earlier if r[1] not in self.queries and r[1] in job.summaries]
         for split in job.exported_splits():
             rows += self.queries.get(split, [])
         rows.sort(key=lambda r: int(r[0]))  # fold order; scene order within a fold (a stable sort)
@@ -144,8 +147,6 @@ class DcaseWriter(Writer):
 def _read_queries(out: str) -> list:
     """The query rows of the export already in ``out`` (ours: the manifest says so)."""
     path = os.path.join(out, QUERIES_FILE)
-    if not os.path.isfile(path):
-        return []
     try:
         with open(path, newline="", encoding="utf-8") as f:
             rows = [tuple(r) for r in csv.reader(f)]

@@ -9,9 +9,12 @@
                                 .seal.json: what the shard was made from, and its checksums
     OUT/.tsel.lock              the dataset's lock; its presence marks the folder as ours
     OUT/demo-corpus/, OUT/demo-bank.h5   built-in demo inputs, built on first use
+
+An export folder is marked by its manifest, ``.tsel-export.json`` (export/base.py).
 """
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass
 
@@ -24,6 +27,8 @@ DEMO_CORPUS_DIR = "demo-corpus"
 DEMO_BANK_FILE = "demo-bank.h5"
 LOCK_FILE = ".tsel.lock"
 SEAL_SUFFIX = ".seal.json"
+EXPORT_MANIFEST_FILE = ".tsel-export.json"
+TOOL = "tsel-data"  # the "tool" of every JSON document that marks a folder as ours
 NOISE_GROUP = "noise"  # HDF5 group of a shard's unlabelled noise: noise/KIND/{snr_db, level_dbfs}
 RECEIVERS_GROUP = "receivers"  # HDF5 group of a shard's further receivers: receivers/NAME/{audio, mic_positions}
 
@@ -92,5 +97,15 @@ class Layout:
         return self.path(LOCK_FILE)
 
     def is_ours(self) -> bool:
-        """Whether the folder holds a tsel-data dataset (finished, planned, or started)."""
-        return any(os.path.exists(p) for p in (self.lock_file, self.config_file, self.dataset_file))
+        """Whether the folder holds a tsel-data dataset (finished, planned, or started);
+        another tool's ``dataset.json`` or ``plan/config.json`` does not make it one."""
+        return os.path.exists(self.lock_file) or any(_is_tsel_doc(p) for p in (self.config_file, self.dataset_file))
+
+
+def _is_tsel_doc(path: str) -> bool:
+    try:
+        with open(path, encoding="utf-8") as f:
+            doc = json.load(f)
+    except (OSError, ValueError):
+        return False
+    return isinstance(doc, dict) and doc.get("tool") == TOOL
