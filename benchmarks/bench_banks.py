@@ -19,7 +19,9 @@ ab: the delay-aware render (default) against the plain crossfade (``delays=None`
 stft: the moving renderer against a reference STFT-domain renderer written here the way
    the DCASE data generator / SpatialScaper do it (per STFT frame: interpolate every RIR
    frame's spectrum between the RIRs, multiply-accumulate the buffered input spectra,
-   inverse FFT, overlap-add; window 0.05 s, hop half of it).
+   inverse FFT, overlap-add; window 0.05 s, hop half of it), and against the same method
+   with its frame loops vectorised (each frame's weights touch two knots; the same output
+   to 1e-14), so the speed-up is not only that of one Python loop over frames.
 accuracy: both against a brute-force sample-by-sample time-varying convolution (SNR in
    dB), on circular walks (the delay-aware model's own sample-by-sample reference is in
    tests/test_moving_ripple.py).
@@ -179,6 +181,46 @@ def stft_reference(x, rirs, times, fs, win=None):
         y = np.sum(s_buf[:, :, None] * ctf, axis=1)
         out[f * hop : f * hop + nfft] += np.fft.irfft(y, nfft, axis=0)
     return out[win : win + len(x)].T  # drop the analysis delay
+
+
+def stft_vectorised(x, rirs, times, fs, win=None):
+    """:func:`stft_reference` with its frame loops as array operations: every frame
+    transformed at once, and each frame's interpolated transfer function built from the
+    two knots its weights touch, not all K."""
+    win = int(win or 0.1 * fs // 2)
+    hop, nfft = win // 2, 2 * win
+    K, C, L = rirs.shape
+    w = np.sin(np.pi * np.arange(win) / win) ** 2
+
+    def frames(sig):  # [frames, bins, ...]: _stft's frames, all at once
+        n = 2 * int(np.ceil(len(sig) / (2 * hop))) + 1
+        pad = np.zeros((win - hop + n * hop + win,) + sig.shape[1:])
+        pad[win - hop: win - hop + len(sig)] = sig
+        seg = pad[np.arange(n)[:, None] * hop + np.arange(win)[None]]
+        return np.fft.rfft(seg * (w[None, :] if sig.ndim == 1 else w[None, :, None]), nfft, axis=1)
+
+    ir = np.stack([frames(rirs[k].T.astype(np.float64)) for k in range(K)], axis=1)  # [F_ir, K, B, C]
+    sig = frames(x.astype(np.float64))  # [F, B]
+    stamps = np.round((np.asarray(times) * fs + hop) / hop).astype(int)
+    n_frames = min(sig.shape[0], int(stamps[-1]))
+    g = np.zeros((max(n_frames, int(stamps[-1])) + 1, K))
+    for k in range(K - 1):
+        pts = np.arange(stamps[k], stamps[k + 1] + 1) - 1
+        r = np.arange(len(pts)) / max(len(pts) - 1, 1)
+        g[pts, k], g[pts, k + 1] = 1 - r, r
+    g = g[:n_frames]
+    k0 = np.clip(np.argmax(g > 0, axis=1), 0, K - 2)
+    s0 = sig[:n_frames] * g[np.arange(n_frames), k0][:, None]
+    s1 = sig[:n_frames] * g[np.arange(n_frames), k0 + 1][:, None]
+    spec = np.zeros((n_frames, nfft // 2 + 1, C), dtype=complex)
+    for i in range(ir.shape[0]):  # input frame f - i through RIR frame i
+        m = n_frames - i
+        spec[i:] += ir[i, k0[:m]] * s0[:m, :, None] + ir[i, k0[:m] + 1] * s1[:m, :, None]
+    y = np.fft.irfft(spec, nfft, axis=1)
+    out = np.zeros((hop * n_frames + nfft, C))
+    for f in range(n_frames):
+        out[f * hop: f * hop + nfft] += y[f]
+    return out[win: win + len(x)].T
 
 
 def brute_force(x, rirs, times, fs):
@@ -405,8 +447,13 @@ def bank_sections(args, sections):
             t0 = time.process_time()
             ref = stft_reference(x, rirs, times, FS)
             t_ref = time.process_time() - t0
+            t0 = time.process_time()
+            vec = stft_vectorised(x, rirs, times, FS)
+            t_vec = time.process_time() - t0
             print(f"moving render, one 10 s source, {len(idx)} knots: ours {t_ours * 1e3:.1f} ms (median), "
-                  f"STFT-domain reference {t_ref * 1e3:.0f} ms -> {t_ref / t_ours:.0f}x faster (goal >= 50x)")
+                  f"STFT-domain reference {t_ref * 1e3:.0f} ms -> {t_ref / t_ours:.0f}x faster (goal >= 50x); "
+                  f"the same vectorised {t_vec * 1e3:.0f} ms -> {t_vec / t_ours:.0f}x "
+                  f"(max difference to the reference {np.max(np.abs(vec - ref)):.1e})")
 
         if "accuracy" in sections:
             # Exactness, on every trajectory of the room (knot spacings differ: a whole number

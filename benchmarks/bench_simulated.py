@@ -20,7 +20,15 @@ Measured, each configuration in its own worker process (one thread each):
   * peak RSS of each worker;
   * T30 / requested RT60 of the first RIR (omni / W, Schroeder -5..-35 dB) over more
     rooms: min, median, max, share within ±10 %;
-  * 2 worker processes against 1 on the same scenes.
+  * 2 worker processes against 1 on the same scenes;
+  * a scene against its own convolution (``--sections ratio``): CPU time of a whole
+    ``render_scene`` (clips from the cache, RIRs, convolution, levels, labels, record;
+    no shard writing) over the CPU time of the static convolutions inside it
+    (timevarying.render_static as render.py calls it), hybrid, mic4, median of
+    ``--repeats``. Once with the render workers' memory settings
+    (executors.prepare_worker: freed memory kept for reuse) and once with glibc's
+    defaults, where every large buffer comes fresh from the kernel (page faults), as in
+    a process that does not set them up (issue 25's audit measured this way).
 """
 from __future__ import annotations
 
@@ -184,6 +192,61 @@ def in_worker(fn, args, processes: int = 1):
 
 
 # --- T30 ----------------------------------------------------------------------------------
+def scene_vs_convolution(args) -> dict:
+    """CPU ms per scene of ``render_scene`` on ``recipes`` and of the convolutions inside
+    it, in this process (one worker of :func:`in_worker` or :func:`in_plain_worker`)."""
+    recipes = args
+    import tsel_data.render as render
+
+    spent = [0.0]
+    convolve_static = render.render_static
+
+    def timed(*a, **k):
+        t = time.process_time()
+        y = convolve_static(*a, **k)
+        spent[0] += time.process_time() - t
+        return y
+
+    render.render_static = timed
+    for r in recipes:  # warm-up: the clip cache, FFT plans, freed memory to reuse
+        render.render_scene(r)
+    spent[0] = 0.0
+    t0 = time.process_time()
+    for r in recipes:
+        render.render_scene(r)
+    total = time.process_time() - t0
+    return {"scene_ms": total / len(recipes) * 1000, "conv_ms": spent[0] / len(recipes) * 1000}
+
+
+def _one_thread() -> None:
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+
+
+def in_plain_worker(fn, args):
+    """As :func:`in_worker`, one thread, but glibc's default memory settings."""
+    ctx = mp.get_context("fork")
+    with ctx.Pool(1, initializer=_one_thread, maxtasksperchild=1) as pool:
+        return pool.map(fn, args)
+
+
+def ratio_table(opts, clip_dir: str) -> None:
+    print("\n== a scene against its own convolution (CPU ms per scene, hybrid, mic4) ==")
+    print(f"{'rooms':10s} {'memory':26s} {'scene':>7s} {'convolution':>12s} {'ratio':>6s}  (each repeat's ratio)")
+    for family in ("paper", "realistic"):
+        recs = scenes(opts.scenes, family, "mic4", "hybrid", clip_dir, seed=opts.seed + 2)
+        runs = {"render workers' (reuse)": [], "glibc defaults": []}
+        for _ in range(opts.repeats):  # interleaved: both settings see the same load
+            runs["render workers' (reuse)"] += in_worker(scene_vs_convolution, [recs])
+            runs["glibc defaults"] += in_plain_worker(scene_vs_convolution, [recs])
+        for memory, res in runs.items():
+            ratios = [r["scene_ms"] / r["conv_ms"] for r in res]
+            print(f"{family:10s} {memory:26s} {np.median([r['scene_ms'] for r in res]):7.1f} "
+                  f"{np.median([r['conv_ms'] for r in res]):12.1f} {np.median(ratios):5.2f}x  "
+                  f"({', '.join(f'{x:.2f}' for x in ratios)})")
+
+
 def t30_ratios(args) -> list[float]:
     family, method, n, seed = args
     rng = np.random.default_rng([seed, 7, {"paper": 0, "realistic": 1}[family]])
@@ -276,8 +339,9 @@ def main() -> None:
     ap.add_argument("--t30-rooms", type=int, default=100, help="rooms per family for the hybrid T30 distribution")
     ap.add_argument("--t30-rooms-slow", type=int, default=40, help="rooms per family for ism / pyroomacoustics T30")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--repeats", type=int, default=3, help="repeats of the 2-vs-1 worker comparison")
-    ap.add_argument("--sections", default="speed,workers,t30", help="comma-separated subset of speed,workers,t30")
+    ap.add_argument("--repeats", type=int, default=3, help="repeats of the 2-vs-1 worker comparison and of the ratio")
+    ap.add_argument("--sections", default="speed,workers,t30,ratio",
+                    help="comma-separated subset of speed,workers,t30,ratio")
     opts = ap.parse_args()
 
     print(f"bench_simulated: {DURATION:.0f} s scenes at {FS} Hz, 2 static sources, 1 thread per worker, "
@@ -298,6 +362,8 @@ def main() -> None:
             worker_scaling(opts, clip_dir, out_dir)
         if "t30" in sections:
             t30_table(opts)
+        if "ratio" in sections:
+            ratio_table(opts, clip_dir)
 
 
 if __name__ == "__main__":

@@ -41,18 +41,21 @@ from .timevarying import render_moving, render_static
 PEAK_LIMIT = 0.99
 
 
-def convolve(signals: np.ndarray, rirs: np.ndarray, n_out: int) -> np.ndarray:
+def convolve(signals, rirs, n_out: int, out=None) -> np.ndarray:
     """Static FFT convolution of each source with its RIRs, kept to ``n_out`` samples.
 
-    signals: float32 [S, T]; rirs: float32 [S, C, L] -> float32 [S, C, n_out], where
-    out[s, c] = (signals[s] * rirs[s, c])[:n_out]. One implementation for the whole
-    package: timevarying.render_static (batched overlap-add, float32).
+    signals: S float32 [T]; rirs: S float32 [C, L] (arrays [S, T], [S, C, L] or sequences)
+    -> float32 [S, C, n_out], where out[s, c] = (signals[s] * rirs[s, c])[:n_out]; into
+    ``out`` when given ([S, C, n_out], or S arrays [C, n_out]: rows of a scene's images).
+    One implementation for the whole package: timevarying.render_static (batched
+    overlap-add, float32).
     """
-    out = np.empty((len(signals), rirs.shape[1], n_out), dtype=np.float32)
-    for k, (x, h) in enumerate(zip(signals, rirs)):
+    if out is None:
+        out = np.empty((len(signals), rirs[0].shape[0], n_out), dtype=np.float32)
+    for x, h, o in zip(signals, rirs, out):
         y = render_static(x, h)[:, :n_out]
-        out[k, :, : y.shape[-1]] = y
-        out[k, :, y.shape[-1]:] = 0.0
+        o[:, : y.shape[-1]] = y
+        o[:, y.shape[-1]:] = 0.0
     return out
 
 
@@ -87,7 +90,9 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray, array=None) -> tuple[np
     """
     fs, n = recipe.fs, recipe.n_samples
     array = recipe.array if array is None else array
-    images = np.zeros((len(recipe.sources), array.n_channels, n), dtype=np.float32)
+    # written once: each source below fills its whole image, zeros included (a zero-filled
+    # buffer cost a pass over [S, C, T], and a convolution into a buffer of its own a copy)
+    images = np.empty((len(recipe.sources), array.n_channels, n), dtype=np.float32)
     rt60 = None
     static = [k for k, s in enumerate(recipe.sources)
               if s.spatial == Spatial.DIRECTIONAL and s.bank is None and not s.path]
@@ -95,7 +100,7 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray, array=None) -> tuple[np
         pts = np.array([recipe.sources[k].position for k in static], dtype=np.float64)
         rs = simulate_rirs(recipe.room, array, pts, fs, method=recipe.rir_method, seed=recipe.seed)
         rt60 = rs.rt60_measured
-        images[static] = convolve(dry[static], rs.rirs, n)
+        convolve([dry[k] for k in static], rs.rirs, n, out=[images[k] for k in static])
     for k, s in enumerate(recipe.sources):
         if s.spatial == Spatial.ADDITIVE:
             _additive(images[k], dry[k], array.spec.additive_gains(array.n_channels))
@@ -111,7 +116,7 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray, array=None) -> tuple[np
             # a mixed receiver (stereo from FOA) mixes its base's measured RIRs
             rirs = [array.spec.mixed(r) for r in _bank(recipe).views(b.room, b.trajectory, b.indices)]
             if len(rirs) == 1:
-                images[k] = convolve(dry[k:k + 1], rirs[0][None], n)[0]
+                convolve(dry[k:k + 1], rirs[:1], n, out=images[k:k + 1])
             else:
                 images[k] = render_moving(dry[k], rirs, np.asarray(b.times), fs)[:, :n]
     return images, rt60
@@ -125,6 +130,8 @@ def _additive(image: np.ndarray, dry: np.ndarray, gains: np.ndarray) -> None:
             image[ch] = dry
         elif g != 0.0:
             image[ch] = dry * np.float32(g)
+        else:
+            image[ch] = 0.0
 
 
 def path_image(room, array, path, dry: np.ndarray, fs: int, method: str, seed: int) -> tuple[np.ndarray, float | None]:

@@ -9,8 +9,8 @@ Methods: ``pyroomacoustics`` (the library's default path, as users write it: abs
 and max order from ``inverse_sabine``, ``compute_rir``), and the project's own
 ``ism`` / ``hybrid`` (see shoebox.py, docs/acoustics.md).
 
-Import order: ``base`` (RirSet), then ``metrics``, ``ism``, ``late``, then the methods
-``shoebox`` and ``pyroom``, then ``simulate`` (the dispatcher).
+Import order: ``base`` (RirSet), then ``metrics``, ``highpass``, ``ism``, ``late``, then
+the methods ``shoebox`` and ``pyroom``, then ``simulate`` (the dispatcher).
 """
 from ..geometry import SOUND_SPEED
 from .base import RirSet

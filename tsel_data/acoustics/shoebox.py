@@ -28,13 +28,13 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy.signal import butter, sosfilt
 
 from ..choices import RirMethod
 from ..errors import GeometryError
 from ..geometry import SOUND_SPEED
 from .base import RirSet
 from .capsules import capsule_model
+from .highpass import butter2_highpass, sosfilt
 from .image_paths import image_groups, n_groups
 from .ism import FD_TAPS, decay_model, fd_energy_gain, image_chunks, model_edc
 from .metrics import decay_time, t30
@@ -131,7 +131,7 @@ def shoebox_rirs(
             grid = model.new_grid(n_img)
             for pos, order in image_chunks(dims, p, centre, radius, max_order):
                 model.add(grid, pos, np.exp(-a * order), fade)
-            rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), model.render(grid), axis=-1)
+            rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), model.render(grid))
             continue
         chunks = [(pos, np.exp(-a * order), grouped.of(key)) for pos, order, key in
                   image_chunks(dims, p, centre, radius, max_order, keys=True)]
@@ -221,8 +221,9 @@ def _dc_blocker(fs: int) -> np.ndarray:
     with the image density (∝ t²) and lengthens T30 by 20-30 %. Real walls and
     microphones have no such DC path; Allen & Berkley (1979) high-pass their image RIRs
     for the same reason. Causal, so sample 0 stays the emission time (the direct path
-    peak is scaled by b0 ≈ 0.996 at 24 kHz)."""
-    return butter(2, HIGHPASS, "highpass", fs=fs, output="sos")
+    peak is scaled by b0 ≈ 0.996 at 24 kHz). Designed and run without scipy.signal
+    (highpass.py), the same numbers as its butter and sosfilt."""
+    return butter2_highpass(HIGHPASS, fs)
 
 
 def _late_tail(rng, dims, a, rt60, model, fs, n_len, t_mix, n_points) -> np.ndarray:

