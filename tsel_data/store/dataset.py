@@ -139,8 +139,9 @@ def _typed(value, kind: type, where: str, path: str, root: str):
     of a hand-edited or damaged document: a scene count of "12" is not read as 12."""
     ok = isinstance(value, (int, float) if kind is float else kind) and not isinstance(value, bool)
     if not ok or (kind is int and value < 0):
-        raise DatasetError(f"{path}: {where} is {value!r}, not {'a count' if kind is int else kind.__name__}; the "
-                           f"file was edited or damaged: rerun `tsel finalize {root}`")
+        what = "missing" if value is None else f"{value!r}, not {'a count' if kind is int else kind.__name__}"
+        raise DatasetError(f"{path}: incomplete or damaged ({where} is {what}); the file was edited or cut short: "
+                           f"rerun `tsel finalize {root}`")
     return value
 
 
