@@ -422,7 +422,7 @@ def test_soak_2000_scenes_memory_stays_flat(demo_corpus, tmp_path, monkeypatch):
     monkeypatch.setattr(gen, "render_shard", measured)
     out = str(tmp_path / "soak")
     t0 = time.perf_counter()
-    s = generate(cfg, out, workers=1, progress=False)
+    s = generate(cfg, out, workers=1, progress=False, allow_reuse=True)  # 2000 scenes of 60 clips, on purpose
     seconds = time.perf_counter() - t0
     assert s["splits"]["train"] == 2000 and len(rss) == 100
     q = len(rss) // 4

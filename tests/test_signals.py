@@ -251,7 +251,7 @@ def test_a_stop_while_planning_is_at_once_and_writes_no_plan(demo_corpus, tmp_pa
     # enough scenes that planning takes seconds on the planning pool
     out = str(tmp_path / "ds")
     run = Run("plan", "--preset", "demo", "--corpus-dir", demo_corpus, "--out", out, "--split", "train=15000",
-              "--split", "val=0", "--split", "test=0", "--set", "audio.duration=1.0", "--workers", "2")
+              "--split", "val=0", "--split", "test=0", "--set", "audio.duration=1.0", "--workers", "2", "--allow-reuse")
     run.until(lambda: len(_children(run.p.pid)) >= 2, "planning on 2 workers")
     run.signal_group(signal.SIGINT)
     took = run.end()

@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import os
 import unicodedata
+from collections import Counter
 from dataclasses import dataclass, field
 
 from .atomic import write_json, write_lines
@@ -27,7 +28,7 @@ from .clipcache import ClipCache, file_key, settings_key
 from .config import Config
 from .errors import AudioError, ConfigError, ManifestError, TselError
 from .executors import Runner, ordered_pool
-from .manifests import read_manifest
+from .manifests import AUDIO_EXTENSIONS, detect_format, read_manifest, split_aliases
 from .progress import bar
 
 BUILTIN_DEMO = "builtin:demo"
@@ -67,6 +68,9 @@ class CatalogScan:
     warnings: one-line notes that do not stop a run (clips reused by many scenes).
     counts: split -> {"clips": listed, "missing": files absent, "bad": bad clips} for
     the splits that were read. audio_dirs: split -> the folder its audio is read from.
+    rates: split -> {rate: usable clips} below the scenes' rate. left_out: split -> clips
+    below ``corpus.min_samplerate``. hints: split -> where its missing audio files seem
+    to be, and the setting.
     """
 
     clips: dict[str, list[Clip]] = field(default_factory=dict)
@@ -76,6 +80,9 @@ class CatalogScan:
     warnings: list[str] = field(default_factory=list)
     counts: dict[str, dict] = field(default_factory=dict)
     audio_dirs: dict[str, str] = field(default_factory=dict)
+    rates: dict[str, dict[int, int]] = field(default_factory=dict)
+    left_out: dict[str, int] = field(default_factory=dict)
+    hints: dict[str, str] = field(default_factory=dict)
 
     def presence_lines(self) -> list[str]:
         """Per split read, ``train: 45,321 of 49,838 clips present (90.9 %)``: what a
@@ -87,6 +94,10 @@ class CatalogScan:
             line = f"{split}: {listed - missing:,} of {listed:,} clips present ({share:.1f} %)"
             if c.get("bad"):
                 line += f", {c['bad']:,} of them bad"
+            if self.left_out.get(split):
+                line += f", {self.left_out[split]:,} left out (recorded below corpus.min_samplerate)"
+            if split in self.hints:
+                line += f"; {self.hints[split]}"
             out.append(line)
         return out
 
@@ -135,11 +146,14 @@ def manifest_path(cfg: Config, split: str, corpus_dir: str) -> str:
 def split_audio_dir(cfg: Config, split: str, corpus_dir: str) -> str:
     """The folder a split's relative audio paths resolve against: ``splits.NAME.audio_dir``,
     else ``corpus.audio_dir`` (both relative to the corpus folder), else ``corpus/audio``
-    if it exists, else the corpus folder. A folder the config names must exist."""
+    if it exists, else the corpus folder; when that one holds no audio file itself, a
+    folder named for the split inside it or the corpus folder (:func:`split_subfolder`).
+    A folder the config names must exist."""
     named = cfg.splits[split].audio_dir or cfg.corpus.audio_dir
     if not named:
         audio = os.path.join(corpus_dir, "audio")
-        return audio if os.path.isdir(audio) else corpus_dir
+        base = audio if os.path.isdir(audio) else corpus_dir
+        return split_subfolder(base, corpus_dir, split) or base
     key = f"splits.{split}.audio_dir" if cfg.splits[split].audio_dir else "corpus.audio_dir"
     d = os.path.expanduser(named)
     d = d if os.path.isabs(d) else os.path.join(corpus_dir, d)
@@ -148,6 +162,59 @@ def split_audio_dir(cfg: Config, split: str, corpus_dir: str) -> str:
         raise ManifestError(f"{key}: audio folder {named} not found in {corpus_dir} (its folders: "
                             f"{', '.join(folders[:8]) or 'none'}); set {key} to the folder that holds the audio")
     return d
+
+
+def split_subfolder(base: str, corpus_dir: str, split: str) -> str | None:
+    """The folder named for ``split`` (``train``, ``training``, ``development``; ``val``,
+    ``validation``; ...) in ``base`` or ``corpus_dir`` that holds audio, when ``base``
+    holds no audio file itself: where several download tools put AudioCaps
+    (``audio/train/``) and Clotho unpacks (``development/``)."""
+    if _holds_audio(base):
+        return None
+    for folder in dict.fromkeys((base, corpus_dir)):
+        for name in split_aliases(split):
+            d = os.path.join(folder, name)
+            if os.path.isdir(d) and _holds_audio(d):
+                return d
+    return None
+
+
+def _holds_audio(folder: str) -> bool:
+    try:
+        with os.scandir(folder) as it:
+            return any(e.name.lower().endswith(AUDIO_EXTENSIONS) for e in it)
+    except OSError:
+        return False
+
+
+HINT_SAMPLE = 50  # missing clips looked for elsewhere
+HINT_FOLDERS = 2000  # folders of the corpus looked into, at most
+
+
+def missing_hint(split: str, missing: list[Clip], audio_dir: str, corpus_dir: str) -> str:
+    """Where the audio files of a split that finds few of them seem to be: the folder
+    below the corpus that holds most of the first missing files (by name, any audio
+    extension), and the setting that reads them there; else the settings to look at."""
+    stems = {os.path.splitext(os.path.basename(c.audio))[0] for c in missing[:HINT_SAMPLE]}
+    stems |= {"Y" + s for s in stems}
+    here = os.path.abspath(audio_dir)
+    best, best_n = None, 0
+    for k, (folder, dirs, names) in enumerate(os.walk(corpus_dir)):
+        dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+        if k >= HINT_FOLDERS or folder.count(os.sep) - corpus_dir.rstrip(os.sep).count(os.sep) > 3:
+            dirs[:] = []
+            continue
+        if os.path.abspath(folder) == here:
+            continue
+        n = sum(1 for m in names if m.lower().endswith(AUDIO_EXTENSIONS) and os.path.splitext(m)[0] in stems)
+        if n > best_n:
+            best, best_n = folder, n
+    if best is None:
+        return (f"none of them is anywhere below {corpus_dir}: set splits.{split}.audio_dir to the folder that "
+                f"holds them, or corpus.audio_template to their names")
+    rel = os.path.relpath(best, corpus_dir).replace(os.sep, "/")
+    return (f"{best_n} of the first {min(len(missing), HINT_SAMPLE)} are in {rel}: set splits.{split}.audio_dir = "
+            f"\"{rel}\"")
 
 
 def read_split_clips(cfg: Config, split: str, corpus_dir: str, audio_dir: str | None = None) -> list[Clip]:
@@ -167,7 +234,10 @@ def read_split_clips(cfg: Config, split: str, corpus_dir: str, audio_dir: str | 
     if cfg.corpus.audio_template:
         opts["template"] = cfg.corpus.audio_template
     audio_dir = audio_dir or split_audio_dir(cfg, split, corpus_dir)
-    clips = read_manifest(path, format=cfg.corpus.format, audio_dir=audio_dir, **opts)
+    try:
+        clips = read_manifest(path, format=cfg.corpus.format, audio_dir=audio_dir, **opts)
+    except ManifestError as e:
+        raise _format_hint(path, cfg.corpus.format) or e from None
     if shared:
         untagged = next((c for c in clips if c.split is None), None)
         if untagged is not None:
@@ -180,6 +250,23 @@ def read_split_clips(cfg: Config, split: str, corpus_dir: str, audio_dir: str | 
         raise ManifestError(f"{path}: no row has split {split!r} (the split column holds {', '.join(found)}); "
                             f"name the splits alike in the config and the manifest")
     return mine
+
+
+def _format_hint(path: str, fmt: str) -> ManifestError | None:
+    """When a manifest the configured reader refuses has another format's header (a
+    plain ``path,caption,split`` CSV under a paper preset's ``corpus.format =
+    "audiocaps"``): the error that names the format and the setting."""
+    if fmt == "auto":
+        return None
+    try:
+        found = detect_format(path)
+    except (TselError, OSError):
+        return None
+    if found == fmt:
+        return None
+    one = " (or --manifest FILE: one manifest for every split, by its split column)" if found == "plain" else ""
+    return ManifestError(f"{path}:1: the header is a {found} manifest's, but corpus.format is \"{fmt}\"; set "
+                         f"corpus.format = \"{found}\" or \"auto\"{one}")
 
 
 def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool | None = None) -> CatalogScan:
@@ -206,7 +293,9 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
     for split in cfg.active_splits():
         try:
             scan.audio_dirs[split] = split_audio_dir(cfg, split, corpus_dir)
-            clips = read_split_clips(cfg, split, corpus_dir, scan.audio_dirs[split])
+            with bar(None, f"read {split}", "clip", progress) as b:  # 50k rows and their file names: a second or more
+                clips = read_split_clips(cfg, split, corpus_dir, scan.audio_dirs[split])
+                b.update(len(clips))
         except TselError as e:
             scan.problems.append(e)
             continue
@@ -216,9 +305,16 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
             continue
         scan.problems += [ManifestError(m) for m in duplicate_clips(clips, split, seen)]
         scan.problems += [ManifestError(m) for m in caption_problems(clips)]
-        good, missing, n_bad = [], [], 0
+        good, missing, n_bad, rates, left_out = [], [], 0, Counter(), 0
+        floor = cfg.corpus.min_samplerate
         for clip, chk in zip(clips, check_clips(clips, cfg, workers, progress, desc=f"check {split}")):
             if chk.problem is None:
+                rate = chk.samplerate
+                if rate and floor and rate < floor:
+                    left_out += 1
+                    continue
+                if rate and rate < cfg.audio.fs:
+                    rates[int(rate)] += 1
                 good.append(clip)
                 continue
             bad = BadClip(split, clip.id, clip.origin, chk.problem)
@@ -231,9 +327,15 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
                 scan.problems.append(bad.error())
         scan.missing[split] = missing
         scan.counts[split] = {"clips": len(clips), "missing": len(missing), "bad": n_bad}
+        scan.rates[split] = dict(sorted(rates.items()))
+        scan.left_out[split] = left_out
+        if missing and 2 * len(missing) >= len(clips):  # most files absent: probably looked for in the wrong place
+            scan.hints[split] = missing_hint(split, missing, scan.audio_dirs[split], corpus_dir)
         if len(good) < MIN_CLIPS:
-            absent = f" ({len(missing)} of {len(clips)} audio files missing from {scan.audio_dirs[split]})" \
-                if missing else ""
+            absent = f" ({len(missing)} of {len(clips)} audio files missing from {scan.audio_dirs[split]}" \
+                     + (f"; {scan.hints[split]}" if split in scan.hints else "") + ")" if missing else ""
+            if left_out:
+                absent += f" ({left_out} left out: recorded below corpus.min_samplerate = {floor} Hz)"
             scan.problems.append(TselError(f"split {split}: only {len(good)} usable clips in "
                                            f"{cfg.splits[split].manifest}{absent}; a scene needs {MIN_CLIPS}; add "
                                            f"clips or fix the bad ones"))
@@ -242,6 +344,7 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
         note = reuse_warning(cfg, split, len(good))
         if note:
             scan.warnings.append(note)
+    scan.problems = list({str(p): p for p in scan.problems}.values())  # one manifest read by several splits
     return scan
 
 
@@ -252,10 +355,31 @@ def reuse_warning(cfg: Config, split: str, usable: int) -> str | None:
     sources = 1 + int((cfg.scene.interferers.bounds or (1, 1))[1])
     count = cfg.splits[split].count
     uses = count * sources / usable
-    if uses <= REUSE_WARN:
+    if uses <= REUSE_WARN or uses > cfg.corpus.max_reuse:  # beyond the limit: reuse_stop says it, once
         return None
     return (f"split {split}: {count:,} scenes from {usable:,} usable clips: each clip sounds in about {uses:.1f} "
             f"scenes; lower splits.{split}.count to about {int(REUSE_WARN * usable / sources):,} or add clips")
+
+
+def reuse_stop(cfg: Config, scan: CatalogScan) -> str | None:
+    """Why a run must stop before any work: splits whose count would have each usable
+    clip sound in more than ``corpus.max_reuse`` scenes on average (a paper preset's
+    7,224 scenes over a few clips: hours of rendering, a dataset of repeats)."""
+    sources = 1 + int((cfg.scene.interferers.bounds or (1, 1))[1])
+    limit = cfg.corpus.max_reuse
+    over = []
+    for split, clips in scan.clips.items():
+        count = cfg.splits[split].count
+        uses = count * sources / len(clips)
+        if uses > limit:
+            over.append((split, count, len(clips), uses, max(1, int(limit * len(clips) / sources))))
+    if not over:
+        return None
+    said = "; ".join(f"split {s}: {n:,} scenes from {u:,} usable clips, each clip in about {x:,.0f} scenes"
+                     for s, n, u, x, _ in over)
+    fix = " ".join(f"--split {s}={k}" for s, _, _, _, k in over)
+    return (f"{said} (more than corpus.max_reuse = {limit:g}); ask fewer scenes ({fix}) or add clips, or pass "
+            f"--allow-reuse to make them anyway")
 
 
 def build_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool | None = None) -> CatalogScan:
@@ -327,7 +451,8 @@ def check_clips(clips: list[Clip], cfg: Config, workers: int = 1, progress: bool
     """The ``corpus.check`` verdict on every clip, in order.
 
     Verdicts of ``header`` and ``full`` checks are remembered (:mod:`tsel_data.clipcache`),
-    so only new or changed files are decoded; a progress bar counts those.
+    so only new or changed files are decoded; a progress bar counts the split's clips,
+    the remembered ones done from the start.
     """
     level = cfg.corpus.check
     if level == "none":
@@ -335,7 +460,8 @@ def check_clips(clips: list[Clip], cfg: Config, workers: int = 1, progress: bool
     args = [(c.id, c.audio, level, cfg.corpus.min_duration, cfg.corpus.max_channels, c.offset, cfg.audio.duration,
              cfg.audio.fs) for c in clips]
     if level == "exists":
-        return [_check(a) for a in args]
+        with bar(len(args), desc, "clip", progress) as b:
+            return list(_counted(map(_check, args), b))
     keys = [file_key(c.audio, settings_key(*a[2:])) for c, a in zip(clips, args)]
     out: list[ClipCheck | None] = [None] * len(clips)
     with ClipCache() as cache:
@@ -348,7 +474,9 @@ def check_clips(clips: list[Clip], cfg: Config, workers: int = 1, progress: bool
                 out[i] = ClipCheck(clips[i].id, *known[key])
             else:
                 todo.append(i)
-        with bar(len(todo), desc, "clip", progress if todo else False) as b:
+        # the whole split counts, those remembered done at once: the bar says what is left
+        # (all remembered: the check is instant, no bar)
+        with bar(len(clips), desc, "clip", progress if todo else False, initial=len(clips) - len(todo)) as b:
             jobs = [args[i] for i in todo]
             if workers > 1 and level == "full" and len(jobs) > 64:
                 with ordered_pool(workers) as ex:

@@ -22,7 +22,7 @@ import shutil
 import time
 
 from .atomic import write_error, write_json, write_lines
-from .catalog import write_bad_clips, write_missing_clips
+from .catalog import reuse_stop, write_bad_clips, write_missing_clips
 from .config import Config, Difference, config_differences
 from .errors import ConfigError, DatasetError, TselError
 from .config.receiver import array_poses
@@ -106,7 +106,8 @@ def _refuse(out_dir: str, layout: Layout, diffs: list[Difference], grow: bool) -
     if counts_only and growth(diffs):
         fix = "to add the scenes to this dataset pass --grow (the planned scenes stay as they are)"
     elif counts_only:
-        fix = "a dataset does not shrink: ask for at least the planned counts, or choose another --out"
+        fix = ("a dataset does not shrink once shards are rendered: ask for at least the planned counts, or choose "
+               "another --out")
     else:
         fix = (f"--resume needs the config the plan was made with ({layout.config_file}); use it, or choose "
                f"another --out" + (" (--grow changes only splits.NAME.count)" if grow else ""))
@@ -114,7 +115,7 @@ def _refuse(out_dir: str, layout: Layout, diffs: list[Difference], grow: bool) -
 
 
 def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, grow: bool = False,
-                 force: bool = False, progress: bool | None = None, report=None) -> dict:
+                 force: bool = False, progress: bool | None = None, report=None, allow_reuse: bool = False) -> dict:
     """Check the corpus and write the plan into ``out_dir``.
 
     Parameters
@@ -131,13 +132,20 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
         the scenes: the planned ones keep their recipes (and rendered shards their
         bytes), so the grown dataset is the one a fresh run with the new counts makes.
     progress : bool or None
-        Bars while clips are checked (None: on a terminal).
+        Bars while manifests are read, clips checked and scenes planned (None: on a terminal).
     report : callable, optional
         Called with one-line notes for the user: per split, how many of the listed
         clips are present; clips reused by many scenes.
     force : bool
         Write into a folder that holds files but no tsel-data dataset (files of the same
         names are replaced); without it such a folder is refused.
+    allow_reuse : bool
+        Plan even when a split would use each clip in more than ``corpus.max_reuse``
+        scenes (:func:`~tsel_data.catalog.reuse_stop`); without it that is refused.
+
+    A plan whose shards are not rendered yet is planned again when only the split
+    counts changed (smaller too: nothing is lost); once a shard is rendered, counts may
+    only grow (``grow``).
 
     Returns
     -------
@@ -150,12 +158,14 @@ def plan_dataset(cfg: Config, out_dir: str, workers: int = 1, resume: bool = Fal
         ``out_dir`` holds a plan (without ``resume``/``grow``), a plan of another config
         (naming the keys that differ), files that are not a dataset (without ``force``),
         or another process is writing it.
+    ConfigError
+        A split would reuse its clips beyond ``corpus.max_reuse`` (without ``allow_reuse``).
     TselError
         Any problem of the corpus or the bank (the first; ``tsel check`` lists all).
     """
     layout = _claim(out_dir, force)
     with DatasetLock(layout, exclusive=True, what="plan it"):
-        return _plan_locked(cfg, layout, workers, resume, grow, progress, report)
+        return _plan_locked(cfg, layout, workers, resume, grow, progress, report, allow_reuse)
 
 
 # Disk per scene beyond the float32 audio: the HDF5 labels (3 float32 + 1 bool per source
@@ -208,36 +218,87 @@ def check_ownership(layout: Layout, force: bool = False) -> None:
                        f"empty --out, or pass --force to write into it anyway (files of the same names are replaced)")
 
 
-def _plan_locked(cfg: Config, layout: Layout, workers: int, resume: bool, grow: bool, progress, report) -> dict:
+def _plan_locked(cfg: Config, layout: Layout, workers: int, resume: bool, grow: bool, progress, report,
+                 allow_reuse: bool = False) -> dict:
     out_dir = layout.root
     state = planned_with(layout, cfg)
     if state != "none":
-        if not resume and not grow:
+        diffs = plan_differences(layout, cfg) if state == "different" else []
+        # nothing rendered: new counts lose nothing (a --grow keeps its own path, which
+        # also refuses a corpus that changed since)
+        if diffs and _counts_only(diffs) and not (grow and growth(diffs)) and not _rendered_any(layout):
+            _forget_plan(layout, diffs, report)
+        elif not resume and not grow:
+            if diffs:
+                raise _refuse(out_dir, layout, diffs, grow)
             raise DatasetError(f"{out_dir} already holds a dataset plan; pass --resume to continue it "
                                f"or choose another --out")
-        diffs = plan_differences(layout, cfg)
-        if not diffs:
+        elif not diffs:
             _move_roots(layout, cfg)
             return {s: sp.count for s, sp in cfg.splits.items()}
-        grown = growth(diffs) if grow else None
-        if grown is None:
-            raise _refuse(out_dir, layout, diffs, grow)
-        return _grow(cfg, layout, grown, workers, progress, report)
-    catalog, views = _catalog(cfg, layout, workers, progress, report)
+        else:
+            grown = growth(diffs) if grow else None
+            if grown is None:
+                raise _refuse(out_dir, layout, diffs, grow)
+            return _grow(cfg, layout, grown, workers, progress, report, allow_reuse)
+    catalog, views = _catalog(cfg, layout, workers, progress, report, allow_reuse)
     check_space(cfg, layout)  # after the corpus: what is wrong with the inputs is said first
-    plans = {split: plan_split_json(cfg, split, views[split], workers) if sp.count else []
+    plans = {split: plan_split_json(cfg, split, views[split], workers, progress=progress) if sp.count else []
              for split, sp in cfg.splits.items()}
     _write_plan(cfg, layout, catalog, plans)
     return {split: len(lines) for split, lines in plans.items()}
 
 
-def _catalog(cfg: Config, layout: Layout, workers: int, progress, report):
-    """The checked catalog and planning views, with the notes the user should see first."""
+def _catalog(cfg: Config, layout: Layout, workers: int, progress, report, allow_reuse: bool = False):
+    """The checked catalog and planning views, with the notes the user should see first;
+    a ConfigError when the counts would reuse the clips beyond ``corpus.max_reuse``."""
     catalog, views = prepare_views(cfg, layout, workers, progress)
     if report:
         for line in catalog.presence_lines() + [f"warning: {w}" for w in catalog.warnings]:
             report(line)
+    stop = None if allow_reuse else reuse_stop(cfg, catalog)
+    if stop:
+        raise ConfigError(stop)
     return catalog, views
+
+
+def _counts_only(diffs: list[Difference]) -> bool:
+    return all(d.key.startswith("splits.") and d.key.endswith(".count") for d in diffs)
+
+
+def _rendered_any(layout: Layout) -> bool:
+    """Whether any file of any shard (or of one being written) is there: what a new plan
+    would lose."""
+    for split in _planned_splits(layout):
+        d = layout.split_dir(split)
+        if os.path.isdir(d) and any(n.startswith("shard-") for n in os.listdir(d)):
+            return True
+    return False
+
+
+def _forget_plan(layout: Layout, diffs: list[Difference], report) -> None:
+    """Remove a plan nothing was rendered from (plan/config.json first: without it there
+    is no plan), so the new counts are planned afresh."""
+    if report:
+        report(f"planning {layout.root} again: nothing was rendered yet ("
+               + "; ".join(str(d) for d in diffs[:4]) + ")")
+    names = [layout.config_file] + [layout.plan_file(s) for s in sorted(_planned_splits(layout))]
+    _remove(layout, names + [layout.bad_clips_file, layout.missing_clips_file])
+
+
+def _remove(layout: Layout, paths: list[str]) -> None:
+    """Remove files of the dataset in this order; one that is already gone is fine."""
+    for path in paths:
+        try:
+            os.remove(path)
+        except FileNotFoundError:
+            pass
+        except OSError as e:
+            raise write_error(os.path.relpath(path, layout.root), e, layout.root) from None
+
+
+def _planned_splits(layout: Layout) -> list[str]:
+    return [n[:-len(".jsonl")] for n in os.listdir(layout.plan_dir) if n.endswith(".jsonl")]
 
 
 def _write_plan(cfg: Config, layout: Layout, catalog, plans: dict[str, list[str]]) -> None:
@@ -255,13 +316,14 @@ def _write_plan(cfg: Config, layout: Layout, catalog, plans: dict[str, list[str]
     write_json(layout.config_file, doc)
 
 
-def _grow(cfg: Config, layout: Layout, grown: dict[str, tuple[int, int]], workers: int, progress, report) -> dict:
+def _grow(cfg: Config, layout: Layout, grown: dict[str, tuple[int, int]], workers: int, progress, report,
+          allow_reuse: bool = False) -> dict:
     """Add scenes to a planned (perhaps finished) dataset: plan every split again with
     the same catalog, require the planned scenes to come out the same (else the corpus or
     bank changed and the grown dataset would mix two), mark the dataset unfinished
     (dataset.json removed), remove each grown split's last shard if it was partial (it
     is rendered again, fuller), then write the longer plan."""
-    catalog, views = _catalog(cfg, layout, workers, progress, report)
+    catalog, views = _catalog(cfg, layout, workers, progress, report, allow_reuse)
     plans = {}
     for split, sp in cfg.splits.items():
         before = read_plan_lines(layout, split)
@@ -269,7 +331,7 @@ def _grow(cfg: Config, layout: Layout, grown: dict[str, tuple[int, int]], worker
             plans[split] = before
             continue
         planned = grown[split][0]
-        lines = plan_split_json(cfg, split, views[split], workers) if sp.count else []
+        lines = plan_split_json(cfg, split, views[split], workers, progress=progress) if sp.count else []
         changed = next((i for i in range(planned) if i >= len(before) or lines[i] != before[i]), None)
         if changed is not None:
             raise DatasetError(f"{layout.root}: scene {split}-{changed:06d} would now be planned differently (the "
@@ -280,21 +342,20 @@ def _grow(cfg: Config, layout: Layout, grown: dict[str, tuple[int, int]], worker
     size = cfg.output.shard_size
     for split, (planned, _) in grown.items():
         if planned % size:  # a partial last shard: rendered again with the new scenes
-            stale += reversed(layout.shard_files(split, planned // size))  # HDF5 first: then it is incomplete
-    for path in stale:
-        try:
-            os.remove(path)
-        except FileNotFoundError:
-            pass
-        except OSError as e:
-            raise write_error(os.path.relpath(path, layout.root), e, layout.root) from None
+            last = planned // size
+            # HDF5 first (then it is incomplete), its seal last (else render calls it one of another plan)
+            stale += [*reversed(layout.shard_files(split, last)), layout.seal_file(split, last)]
+            if report and os.path.exists(layout.shard_files(split, last)[0]):
+                report(f"{split}: rendering {os.path.basename(layout.shard_files(split, last)[0])} again, the "
+                       f"last shard: it held {planned % size} of {size} scenes, and --grow fills it")
+    _remove(layout, stale)
     _write_plan(cfg, layout, catalog, plans)
     return {split: len(lines) for split, lines in plans.items()}
 
 
 def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, progress: bool = True,
              executor: str = "local", scheduler: str | None = None, grow: bool = False, force: bool = False,
-             report=None) -> dict:
+             report=None, allow_reuse: bool = False) -> dict:
     """Plan, render and finalize a dataset (the three stages above, in one call).
 
     Parameters are those of :func:`plan_dataset` and :func:`render_shards`.
@@ -311,7 +372,7 @@ def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, 
     # one lock from planning to finalizing: a second run cannot slip in between the stages
     with DatasetLock(layout, exclusive=True, what="generate it"):
         # clip-check bars only on a terminal: a log file would get thousands of bar updates
-        _plan_locked(cfg, layout, workers, resume, grow, None if progress else False, report)
+        _plan_locked(cfg, layout, workers, resume, grow, None if progress else False, report, allow_reuse)
         t1 = time.perf_counter()
         rendered = render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
         t2 = time.perf_counter()

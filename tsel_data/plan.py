@@ -25,6 +25,7 @@ from .config import Config, rooms_without_bank
 from .config.receiver import array_pose, hrtf_problem
 from .errors import TselError
 from .executors import ordered_pool
+from .progress import bar
 from .recipe import BankRef, NoiseItem, QueryPlan, Roots, SceneRecipe, Source
 from .placement import MAX_TRIES, place, place_bank
 from .receivers import receiver
@@ -429,7 +430,7 @@ def _plan_chunk(bounds: tuple[int, int]) -> list[str]:
 
 
 def plan_split_json(cfg: Config, split: str, cat: CatalogView, workers: int = 1, chunk: int = 4000,
-                    start: int = 0) -> list[str]:
+                    start: int = 0, progress: bool | None = False) -> list[str]:
     """JSON lines of a split's recipes, planned on ``workers`` processes.
 
     Scenes are independent, so the result is the same for any number of workers.
@@ -445,6 +446,8 @@ def plan_split_json(cfg: Config, split: str, cat: CatalogView, workers: int = 1,
         Scenes per task.
     start : int
         The first scene to plan (a grown dataset plans only its new scenes).
+    progress : bool or None
+        A bar counting the scenes (None: when stderr is a terminal).
 
     Returns
     -------
@@ -453,8 +456,22 @@ def plan_split_json(cfg: Config, split: str, cat: CatalogView, workers: int = 1,
     """
     n = cfg.splits[split].count
     bounds = [(a, min(a + chunk, n)) for a in range(start, n, chunk)]
-    if workers <= 1 or len(bounds) <= 1:
-        _init_planner(cfg, split, cat)
-        return [line for b in bounds for line in _plan_chunk(b)]
+    with bar(n - start, f"plan {split}", "scene", progress if n > start else False) as b:
+        if workers <= 1 or len(bounds) <= 1:
+            _init_planner(cfg, split, cat)
+            out = []
+            for i in range(start, n):  # scenes are independent: one at a time counts the same
+                out += _plan_chunk((i, i + 1))
+                b.update()
+            return out
+        out = []
+        for lines in _pooled(workers, cfg, split, cat, bounds):
+            out += lines
+            b.update(len(lines))
+        return out
+
+
+def _pooled(workers: int, cfg: Config, split: str, cat: CatalogView, bounds):
+    """The chunks' lines in order, planned on a pool of ``workers`` processes."""
     with ordered_pool(workers, _init_planner, (cfg, split, cat)) as ex:
-        return [line for lines in ex.map(_plan_chunk, bounds) for line in lines]
+        yield from ex.map(_plan_chunk, bounds)

@@ -18,7 +18,7 @@ import shutil
 import tempfile
 
 from .banks.scenes import bank_problems, resolve_bank
-from .catalog import BUILTIN_DEMO, resolve_corpus_dir, scan_catalog
+from .catalog import BUILTIN_DEMO, resolve_corpus_dir, reuse_stop, scan_catalog
 from .config import Config, config_problems, geometry_problems, rooms_without_bank
 from .config.receiver import array_poses, hrtf_problem
 from .errors import DatasetError, TselError
@@ -141,11 +141,18 @@ def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: Chec
             # a partial download is normal: one line per split, not one per absent file
             rep.warnings.append(f"split {split}: {len(clips):,} of {scan.counts[split]['clips']:,} audio files are "
                                 f"missing from {scan.audio_dirs[split]} (first: {os.path.basename(clips[0].audio)}, "
-                                f"{clips[0].origin}); those clips are skipped and listed in OUT/missing_clips.json")
+                                f"{clips[0].origin}); those clips are skipped and listed in OUT/missing_clips.json"
+                                + (f"; {scan.hints[split]}" if split in scan.hints else ""))
     rep.warnings += scan.warnings
+    stop = reuse_stop(cfg, scan)
+    if stop:
+        rep.warnings.append(f"`tsel generate` will stop before rendering: {stop}")
     for split, c in scan.counts.items():
         rep.facts["splits"][split].update(clips=c["clips"], missing=c["missing"], bad=c["bad"],
-                                          policy=cfg.on_bad_clip)
+                                          policy=cfg.on_bad_clip, band_limited=sum(scan.rates[split].values()),
+                                          left_out=scan.left_out[split],
+                                          band_limited_rates=scan.rates.get(split, {}))
+    rep.facts["fs"] = cfg.audio.fs
     return scan.clips
 
 
@@ -164,7 +171,7 @@ def _check_plan(cfg: Config, catalogs: dict, workers: int, rep: CheckReport, out
             view = CatalogView(clips, bank_path)
             if extended_queries(cfg):  # built once here, not in every planning process
                 view.caption_index(cfg.scene.similarity, cfg.corpus.caption_embeddings)
-            lines = plan_split_json(cfg, split, view, workers)
+            lines = plan_split_json(cfg, split, view, workers, progress=None)  # a bar only on a terminal
         except TselError as e:
             rep.error(e)
             continue

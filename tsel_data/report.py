@@ -65,6 +65,10 @@ class CheckReport:
                 parts.append(f"{n:,} clips{share}")
             if s.get("bad"):
                 parts.append(f"{s['bad']} bad ({s.get('policy', 'skip')})")
+            if s.get("band_limited"):
+                parts.append(band_limited_text(s["band_limited"], s.get("band_limited_rates", {}), f.get("fs")))
+            if s.get("left_out"):
+                parts.append(f"{s['left_out']:,} left out (below corpus.min_samplerate)")
             if "planned" in s:
                 parts.append(f"{s['planned']} scenes planned")
             if "scenes" in s and "planned" not in s:
@@ -79,3 +83,13 @@ class CheckReport:
         if "bytes" in f:
             out.append(f"  {f['bytes'] / 1e6:.1f} MB checked")
         return out
+
+
+def band_limited_text(n: int, rates: dict, fs: int | None) -> str:
+    """``7 band-limited (16 kHz: 7, empty above 8 of the scenes' 12 kHz; corpus.min_samplerate)``:
+    clips recorded below the scenes' rate, which resampling cannot fill above their own Nyquist."""
+    rates = {int(r): k for r, k in rates.items()}
+    shown = ", ".join(f"{r / 1000:g} kHz: {k:,}" for r, k in sorted(rates.items()))
+    reach = f" of the scenes' {fs / 2000:g} kHz" if fs else ""
+    low = f", empty above {min(rates) / 2000:g}{reach}" if rates else ""
+    return f"{n:,} band-limited ({shown}{low}; corpus.min_samplerate)"

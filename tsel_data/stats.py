@@ -6,18 +6,25 @@ angular separation between the target and the nearest other directional source,
 source distances, room sizes, RT60 requested and measured, levels (target level, TIR,
 peak), the target's active share of frames and mean elevation, what moves and how fast
 (the median great-circle speed of each moving source along its labels), query length in
-words, and the mix of query types, relations and pairings (:func:`query_mix`). A dataset
-still being made gives the statistics of its finished shards.
+words, and the mix of query types, relations and pairings (:func:`query_mix`), and how
+many target clips are recorded below the scenes' rate (the only file read: their headers,
+when the corpus is where the plan says). A dataset still being made gives the statistics
+of its finished shards.
 """
 from __future__ import annotations
 
+import os
 from collections import Counter
 
 import numpy as np
 
 from .atomic import atomic_output
+from .errors import TselError
 from .geometry import azimuth_difference, circular_mean
 from .evaluate import scene_snr
+from .report import band_limited_text
+from .store.layout import Layout
+from .store.plans import local_roots, read_plan_doc
 from .store.reader import list_splits, open_dataset
 
 AZ_BIN = 10
@@ -49,6 +56,7 @@ def split_stats(root: str, split: str) -> dict:
                            "room_y", "room_z", "volume", "rt60", "rt60_measured", "target_level", "tir", "peak",
                            "target_active", "query_words", "speed", "moves", "snr")}
     clip_uses, target_clips = Counter(), Counter()
+    target_audio: dict[str, str] = {}
     scenarios, motions = Counter(), Counter()
     moving = 0
     for sc in scenes:
@@ -61,6 +69,8 @@ def split_stats(root: str, split: str) -> dict:
                 clip_uses[s.clip_id] += 1
                 if k == 0:
                     target_clips[s.clip_id] += 1
+                    if s.audio:
+                        target_audio[s.clip_id] = s.audio
             if k > 0 and s.tir_db is not None:
                 raw["tir"].append(s.tir_db)
             elif k > 0 and s.power_db is not None and s.level_dbfs is not None:  # levels that follow distance: as heard
@@ -110,7 +120,8 @@ def split_stats(root: str, split: str) -> dict:
                   "reused": sum(1 for c in clip_uses.values() if c > 1),
                   "max_uses": max(clip_uses.values(), default=0),
                   "target_clips": len(target_clips),
-                  "target_reused": sum(1 for c in target_clips.values() if c > 1)},
+                  "target_reused": sum(1 for c in target_clips.values() if c > 1),
+                  "target_band_limited": band_limited_targets(root, target_audio)},
         "target_azimuth_hist": {"bin_deg": AZ_BIN, "edges_from": -180, "counts": hist.tolist()},
         "separation_deg": _summ(raw["separation"]),
         "target_distance_m": _summ(raw["target_dist"]),
@@ -168,6 +179,31 @@ def _query_lines(q: dict) -> list[str]:
     return lines
 
 
+def band_limited_targets(root: str, audio: dict[str, str]) -> dict | None:
+    """Of the target clips (``{clip_id: path in the corpus}``), those recorded below the
+    scenes' rate: ``{"clips": n, "rates": {rate: n}, "fs": scenes' rate}``; a 16 kHz clip is
+    empty above 8 kHz however it is resampled. None when the plan or the corpus is not
+    there to read the headers from."""
+    import soundfile as sf
+
+    layout = Layout(root)
+    try:
+        config = local_roots(read_plan_doc(layout)["config"], layout.root)
+        corpus, fs = config["corpus"]["dir"], int(config["audio"]["fs"])
+    except (TselError, OSError, KeyError, TypeError, ValueError):
+        return None
+    corpus = layout.demo_corpus if corpus.startswith("builtin:") else corpus
+    rates: Counter = Counter()
+    for rel in audio.values():
+        try:
+            rate = sf.info(os.path.join(corpus, rel)).samplerate
+        except (sf.LibsndfileError, RuntimeError, OSError):
+            return None  # the corpus moved or is partly gone: no count rather than a wrong one
+        if rate < fs:
+            rates[int(rate)] += 1
+    return {"clips": int(sum(rates.values())), "rates": dict(sorted(rates.items())), "fs": fs}
+
+
 def dataset_stats(root: str, splits=None) -> dict:
     """{split: split_stats} for the given splits (default: all, in dataset.json order); a
     dataset still being made gives the statistics of its finished shards."""
@@ -200,6 +236,10 @@ def format_text(stats: dict) -> str:
                    + f"   moving fraction {s['moving_fraction']:.2f}")
         out.append(f"  clips: {cl['used']} used ({cl['uses']} uses), {cl['reused']} reused (max {cl['max_uses']} uses); "
                    f"{cl['target_clips']} as target, {cl['target_reused']} of them more than once")
+        narrow = cl.get("target_band_limited")
+        if narrow and narrow["clips"]:
+            out.append(f"  target clips band-limited: {narrow['clips']} of {cl['target_clips']} "
+                       f"({band_limited_text(narrow['clips'], narrow['rates'], narrow['fs']).partition('(')[2]}")
         h = s["target_azimuth_hist"]
         out.append(f"  target azimuth, {h['bin_deg']} deg bins from -180: |{_sparkline(h['counts'])}|")
         out.append("  " + " " * 26 + " min / median / mean / max")

@@ -6,7 +6,7 @@ import json
 import click
 
 from ..errors import TselError
-from .options import config_options, load, worker_count
+from .options import config_options, load, manifest_option, worker_count
 
 SHOW = 20  # problems printed per kind; the rest are counted (--json lists them all)
 
@@ -22,6 +22,7 @@ SHOW = 20  # problems printed per kind; the rest are counted (--json lists them 
 @click.option("--json", "as_json", is_flag=True, help="Print the full report as JSON.")
 @click.option("--release", type=click.Path(file_okay=False),
               help="With DIR: hold it against this recipe release, scene by scene (audio, labels, record).")
+@manifest_option
 def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, release, **config_opts):
     """Check a config and everything it reads before rendering (`tsel check --preset/--config ...`),
     or verify a finished dataset (`tsel check DIR`: shards, sha256, HDF5 vs JSON, counts).
@@ -32,7 +33,7 @@ def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, release
     from ..preflight import check_config
     from ..store.verify import check_dataset
 
-    if dataset_dir and (config_opts.get("preset") or config_opts.get("config_path")):
+    if dataset_dir and (config_opts.get("preset") or config_opts.get("config_path") or config_opts.get("manifest")):
         raise TselError("give either a dataset folder or --preset/--config, not both")
     if release and not dataset_dir:
         raise TselError("--release holds a dataset against a release: give the dataset folder, `tsel check DIR "

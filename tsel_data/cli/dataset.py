@@ -5,7 +5,8 @@ import click
 
 from ..choices import MissingClipPolicy, values
 from ..errors import TselError
-from .options import config_options, executor_options, load, roots_options, worker_count
+from .options import (allow_reuse_option, config_options, executor_options, load, manifest_option, roots_options,
+                      worker_count)
 
 
 @click.command("generate")
@@ -21,18 +22,20 @@ from .options import config_options, executor_options, load, roots_options, work
               "export recipes`) from --corpus-dir, reporting scene by scene (rebuild.json).")
 @click.option("--missing", type=click.Choice(values(MissingClipPolicy)), default="skip", show_default=True,
               help="With --from: leave out scenes whose clip is missing, or substitute one (recorded).")
+@manifest_option
+@allow_reuse_option
 @executor_options
 def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, resume, grow, force,
-                 quiet, release, missing, executor, scheduler):
+                 quiet, release, missing, manifest, allow_reuse, executor, scheduler):
     """Plan, render and finalize a dataset in one go."""
     from ..pipeline import generate
 
     if release:
         return _rebuild(release, out_dir, corpus_dir, bank, missing, workers, quiet, force, executor, scheduler,
-                        preset or config_path or splits or seed is not None or overrides or grow)
-    cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
+                        preset or config_path or splits or seed is not None or overrides or grow or manifest)
+    cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides, manifest=manifest)
     s = generate(cfg, out_dir, workers=worker_count(workers), resume=resume, progress=not quiet, executor=executor,
-                 scheduler=scheduler, grow=grow, force=force, report=_report)
+                 scheduler=scheduler, grow=grow, force=force, report=_report, allow_reuse=allow_reuse)
     total = sum(s["splits"].values())
     rate = sum(s["rendered_now"].values()) / s["render_seconds"] if s["render_seconds"] > 0 else 0.0
     click.echo(f"dataset {cfg.name} in {out_dir}: " + ", ".join(f"{k} {v}" for k, v in s["splits"].items())
@@ -49,7 +52,7 @@ def _rebuild(release, out_dir, corpus_dir, bank, missing, workers, quiet, force,
 
     if planned:
         raise TselError("--from takes its config and plan from the release: drop --preset, --config, --split, "
-                        "--seed, --set and --grow")
+                        "--seed, --set, --manifest and --grow")
     rep = rebuild(release, out_dir, corpus_dir, bank, missing, workers=worker_count(workers), progress=not quiet,
                   force=force, executor=executor, scheduler=scheduler)
     for split, c in rep["splits"].items():
@@ -72,13 +75,17 @@ def _report(line: str) -> None:
 @click.option("--workers", type=int, default=0, help="Processes for checking clips.")
 @click.option("--grow", is_flag=True, help="Add scenes to the plan in --out (larger --split counts).")
 @click.option("--force", is_flag=True, help="Write into a folder that holds other files (not a tsel-data dataset).")
-def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, grow, force):
+@manifest_option
+@allow_reuse_option
+def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, grow, force, manifest,
+             allow_reuse):
     """Check the corpus and write scene recipes only (plan/{split}.jsonl)."""
     from ..pipeline import plan_dataset
     from ..store.plans import shard_tasks
 
-    cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
-    counts = plan_dataset(cfg, out_dir, workers=worker_count(workers), grow=grow, force=force, report=_report)
+    cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides, manifest=manifest)
+    counts = plan_dataset(cfg, out_dir, workers=worker_count(workers), grow=grow, force=force, report=_report,
+                          allow_reuse=allow_reuse)
     n_shards = len(shard_tasks(counts, cfg.output.shard_size))
     click.echo("planned " + ", ".join(f"{k} {v}" for k, v in counts.items()) + f" scenes in {n_shards} shards "
                f"(0-{n_shards - 1}) in {out_dir}/plan")

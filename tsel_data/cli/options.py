@@ -26,12 +26,31 @@ def config_options(f):
     return f
 
 
-def load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validate=True):
+def manifest_option(f):
+    """--manifest: one manifest for every split."""
+    return click.option("--manifest", type=click.Path(dir_okay=False), help="One manifest for every split, its rows "
+                        "shared out by their split column (e.g. your own path,caption,split CSV); its format is "
+                        "detected; the corpus folder is its folder unless --corpus-dir says otherwise.")(f)
+
+
+def allow_reuse_option(f):
+    """--allow-reuse: past corpus.max_reuse."""
+    return click.option("--allow-reuse", is_flag=True, help="Plan even when a split's count would use each clip in "
+                        "more than corpus.max_reuse scenes.")(f)
+
+
+def load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validate=True, manifest=None):
     """The Config the config options describe (TselError for a malformed option)."""
     from ..config import load_config
 
     if not preset and not config_path:
         raise TselError("give --preset NAME or --config FILE.toml (see `tsel presets`)")
+    if manifest:
+        path = os.path.abspath(os.path.expanduser(manifest))
+        corpus_dir = corpus_dir or os.path.dirname(path)
+        inside = not os.path.relpath(path, os.path.abspath(os.path.expanduser(corpus_dir))).startswith("..")
+        # relative to the corpus when it is in it: the plan then names no folder of this machine
+        manifest = os.path.relpath(path, os.path.abspath(os.path.expanduser(corpus_dir))) if inside else path
     counts = {}
     for s in splits:
         name, _, count = s.partition("=")
@@ -39,7 +58,7 @@ def load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validat
             raise TselError(f"--split {s!r}: expected NAME=COUNT, e.g. --split train=100")
         counts[name] = int(count)
     return load_config(preset=preset, path=config_path, overrides=list(overrides), corpus_dir=corpus_dir,
-                       seed=seed, splits=counts, bank=bank, validate=validate)
+                       seed=seed, splits=counts, bank=bank, validate=validate, manifest=manifest)
 
 
 def worker_count(n: int) -> int:

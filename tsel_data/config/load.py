@@ -34,7 +34,7 @@ def preset_text(name: str) -> str:
 
 def load_config(preset: str | None = None, path: str | None = None, overrides=(), *,
                 corpus_dir: str | None = None, bank: str | None = None, seed: int | None = None,
-                splits: dict | None = None, validate: bool = True) -> Config:
+                splits: dict | None = None, validate: bool = True, manifest: str | None = None) -> Config:
     """Build a Config from a preset and/or a TOML file, then ``--set`` overrides, then the
     CLI's shortcuts (later ones win).
 
@@ -51,6 +51,9 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
     seed : int, optional
     splits : dict, optional
         {split name: scene count}.
+    manifest : str, optional
+        One manifest for every split (``--manifest``): ``splits.NAME.manifest`` of every
+        split, and ``corpus.format = "auto"``.
     validate : bool
         Raise the first problem of the parsed config; ``tsel check`` passes False and
         collects every problem itself.
@@ -80,6 +83,12 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
         layers.append(("--seed", {"seed": seed}))
     for name, count in (splits or {}).items():
         layers.append((f"--split {name}={count}", {"splits": {name: {"count": count}}}))
+    if manifest:
+        named = set()
+        for _, table in layers:
+            named |= set((table.get("splits") or {}) if isinstance(table.get("splits"), dict) else ())
+        layers.append(("--manifest", {"corpus": {"format": "auto"},
+                                      "splits": {n: {"manifest": manifest} for n in sorted(named)}}))
     raw: dict = {}
     origins: dict[str, str] = {}
     for label, table in layers:

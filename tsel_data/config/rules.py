@@ -220,6 +220,10 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
         out.append(ConfigError(f"{at(where, 'scene.min_separation', 'scene.interferers')}: scene.min_separation "
                                f"{cfg.scene.min_separation:g}° is impossible with {k} directional sources: the "
                                f"largest possible is {360 / k:g}° (360° / {k}); lower scene.min_separation"))
+    if cfg.corpus.min_samplerate and cfg.corpus.check in ("exists", "none"):
+        out.append(ConfigError(f"{at(where, 'corpus.min_samplerate', 'corpus.check')}: corpus.min_samplerate "
+                               f"needs the clips' rates, which corpus.check = \"{cfg.corpus.check}\" does not read; "
+                               f"set corpus.check = \"header\" (or \"full\")"))
     out += _query_problems(cfg, where)
     out += _noise_problems(cfg, where)
     receiver_errors = receiver_problems(cfg, at(where, "array.capsules", "array.patterns", "array.orientations",

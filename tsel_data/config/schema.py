@@ -50,7 +50,9 @@ class CorpusConfig:
                          choices=CorpusFormat)
     dir: str = option("", "folder with the manifests (and audio); `--corpus-dir` sets it; `\"builtin:demo\"` "
                           "synthesises the demo corpus into `OUT/demo-corpus`", path=True)
-    audio_dir: str = option("", "audio folder, relative to `dir`; default `dir/audio` if it exists, else `dir`")
+    audio_dir: str = option("", "audio folder, relative to `dir`; default `dir/audio` if it exists, else `dir`, and "
+                                "when that one holds no audio file itself, a folder named for the split in it or in "
+                                "`dir` (`audio/train`, `audio/val`, Clotho's `development`)")
     audio_template: str = option("", "audio file name pattern, or a list of patterns tried in order for each clip "
                                      "(the first file that exists is used); empty means the reader's default (for "
                                      "AudioCaps the usual download names, `{youtube_id}.wav`, `Y{youtube_id}.wav`, "
@@ -64,6 +66,14 @@ class CorpusConfig:
     min_duration: float = option(1.0, "shorter clips are bad clips", unit="s")
     max_channels: int = option(8, "a file with more channels is a bad clip (probably not a recording)",
                                unit="channels")
+    min_samplerate: int = option(0, "clips recorded at a lower rate are left out (counted, not bad clips): a 16 kHz "
+                                    "clip is empty above 8 kHz, under the Nyquist of 24 kHz scenes (`tsel check` "
+                                    "counts such clips); e.g. the scenes' `audio.fs`; 0 keeps every clip. Needs "
+                                    "`check = \"header\"` or `\"full\"`", unit="Hz", ge=0, new=True)
+    max_reuse: float = option(20.0, "`tsel generate` and `tsel plan` stop before any work when a split's count "
+                                    "would have each usable clip sound in more scenes than this on average (as "
+                                    "target or interferer), e.g. a paper preset's 7,224 scenes over 8 clips; "
+                                    "`--allow-reuse` goes on anyway", unit="scenes per clip", gt=0, new=True)
     caption_embeddings: str = option("", "an `.npz` of caption vectors (`captions` [N] str, `vectors` [N, D]; CLAP or "
                                          "MiniLM embeddings made elsewhere, or by `tsel corpus embed`) for "
                                          "`scene.similarity = \"embeddings\"`; it must hold every caption of the "

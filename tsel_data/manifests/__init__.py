@@ -23,14 +23,14 @@ import os
 
 from ..clip import Clip
 from ..errors import ManifestError
-from ._common import check_file, fail, manifest_name
+from ._common import AUDIO_EXTENSIONS, check_file, fail, manifest_name, split_aliases
 from .audiocaps import read_audiocaps
 from .clotho import read_clotho
 from .plain import JSONL_EXTENSIONS, read_plain
 from .wavcaps import read_wavcaps
 
-__all__ = ["FORMATS", "READERS", "detect_format", "missing_audio", "read_audiocaps",
-           "read_clotho", "read_manifest", "read_plain", "read_wavcaps"]
+__all__ = ["AUDIO_EXTENSIONS", "FORMATS", "READERS", "detect_format", "missing_audio", "read_audiocaps",
+           "read_clotho", "read_manifest", "read_plain", "read_wavcaps", "split_aliases"]
 
 READERS = {
     "audiocaps": read_audiocaps,

@@ -188,6 +188,13 @@ def infer_split(name: str) -> str | None:
     return found.pop() if len(found) == 1 else None
 
 
+def split_aliases(split: str) -> tuple[str, ...]:
+    """The folder or file words that name ``split``: ``train`` -> ``train``, ``training``,
+    ``development``; ``val`` -> ``val``, ``valid``, ``validation``; any other name itself."""
+    canon = _SPLIT_WORDS.get(split.lower(), split)
+    return tuple(dict.fromkeys([split] + [w for w, c in _SPLIT_WORDS.items() if c == canon]))
+
+
 def pick_split(split: str | None, name: str) -> str | None:
     return split if split is not None else infer_split(name)
 
