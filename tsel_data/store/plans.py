@@ -95,20 +95,25 @@ def has_plan(layout: Layout) -> bool:
     return os.path.isfile(layout.config_file)
 
 
-def read_plan_doc(layout: Layout) -> dict:
+PLAN_AGAIN = ("run `tsel plan` or `tsel generate` first", "plan again into a new --out")
+
+
+def read_plan_doc(layout: Layout, remedy: tuple[str, str] = PLAN_AGAIN) -> dict:
     """``plan/config.json`` (written last by the plan stage): tool, version, the resolved
-    ``config`` as plain data, clip counts."""
+    ``config`` as plain data, clip counts. ``remedy``: what the error line advises when
+    the file is missing, and when it is damaged (a recipe release says "export it again")."""
     path = layout.config_file
     if not os.path.isfile(path):
-        raise DatasetError(f"{layout.root} has no plan ({CONFIG_FILE} missing); run `tsel plan` or `tsel generate` "
-                           f"first")
+        raise DatasetError(f"{layout.root} has no plan ({CONFIG_FILE} missing); {remedy[0]}")
     try:
         with open(path, encoding="utf-8") as f:
             doc = json.load(f)
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise DatasetError(f"{path} is damaged ({e}); plan again into a new --out") from None
+        raise DatasetError(f"{path} is damaged ({e}); {remedy[1]}") from None
+    except OSError as e:
+        raise DatasetError(f"{path}: cannot read ({e.strerror or e}); {remedy[1]}") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("config"), dict):
-        raise DatasetError(f"{path} holds no config; plan again into a new --out")
+        raise DatasetError(f"{path} holds no config; {remedy[1]}")
     return doc
 
 

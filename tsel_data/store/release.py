@@ -26,7 +26,8 @@ import numpy as np
 
 from ..errors import DatasetError
 from ..report import CheckReport
-from .layout import CONFIG_FILE, DATASET_FILE, PLAN_DIR
+from .layout import CONFIG_FILE, DATASET_FILE, PLAN_DIR, Layout
+from .plans import read_plan_doc
 from .reader import list_splits, open_dataset
 
 RELEASE_FILE = "release.json"
@@ -133,10 +134,10 @@ def load_release(root: str) -> Release:
     try:
         with open(path, encoding="utf-8") as f:
             doc = json.load(f)
-        with open(os.path.join(root, CONFIG_FILE), encoding="utf-8") as f:
-            plan_doc = json.load(f)
     except (OSError, ValueError) as e:
         raise DatasetError(f"{root}: the release is damaged or incomplete ({e}); export it again") from None
+    again = "the release is incomplete or damaged: export it again"
+    plan_doc = read_plan_doc(Layout(root), remedy=(again, again))
     if not isinstance(doc, dict) or doc.get("kind") != RELEASE_KIND or not isinstance(doc.get("splits"), dict):
         raise DatasetError(f"{path} is not a tsel-data recipe release")
     if int(doc.get("release_version", 0)) > RELEASE_VERSION:
