@@ -79,8 +79,10 @@ def image_groups(dims, points: np.ndarray, mics: np.ndarray, centre, fs: int, ra
     G = max(1, min(int(groups), len(keys)))
     steps = np.diff(dist, axis=1) * (fs / SOUND_SPEED)
     label = _kmeans(steps, weight, G, direct)
-    delays = np.zeros((len(points), G, len(mics)))
-    for c, m in enumerate(np.asarray(mics, dtype=np.float64)):
+    # channels at one point (coincident capsules, mixed channels) share its delays
+    where, chan = np.unique(np.asarray(mics, dtype=np.float64), axis=0, return_inverse=True)
+    delays = np.zeros((len(points), G, len(where)))
+    for c, m in enumerate(where):
         d = np.linalg.norm(pos - m, axis=-1) * (fs / SOUND_SPEED)  # [N, K]
         for g in range(G):
             members = label == g
@@ -88,7 +90,7 @@ def image_groups(dims, points: np.ndarray, mics: np.ndarray, centre, fs: int, ra
                 delays[:, g, c] = d[direct]
             elif members.any():
                 delays[:, g, c] = weight[members] @ d[members] / weight[members].sum()
-    return ImageGroups(keys, label, delays)
+    return ImageGroups(keys, label, delays[:, :, np.ravel(chan)])
 
 
 def _kmeans(x: np.ndarray, w: np.ndarray, k: int, pinned: int) -> np.ndarray:
