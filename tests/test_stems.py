@@ -60,3 +60,24 @@ def test_stems_need_the_clips(made, tmp_path, capsys, demo_corpus, monkeypatch):
     out = capsys.readouterr()
     assert e.value.code == 0 and (tmp_path / "s.wav").exists() and (tmp_path / "s.stereo.wav").exists()
     assert out.err.startswith("note: no stems: cannot read audio ")
+
+
+def test_the_documented_call_finds_the_clips_from_the_dataset(made, tmp_path, monkeypatch):
+    """docs/commands/inspect.md: render_stems(scene_recipe(DIR, ...), scene.audio), no roots,
+    from any folder: the recipe names its clips where they are on this machine."""
+    from tsel_data.errors import DatasetError
+    from tsel_data.inspect import find_scene
+    from tsel_data.stems import render_stems, scene_recipe
+
+    monkeypatch.chdir(tmp_path)  # clip paths relative to the corpus must not be read from here
+    scene = find_scene(str(made), "test/2")
+    stems, same = render_stems(scene_recipe(str(made), "test", 2, scene.scene_id), scene.audio)
+    assert same and stems.shape == (2, *scene.audio.shape)
+    stored = scene_recipe(str(made), "test", 2, as_stored=True)
+    assert not stored.sources[0].audio.startswith("/")  # the plan keeps names relative to its corpus
+    # a recipe as stored, without its roots: the file it cannot find is named, not libsndfile's "System error."
+    with pytest.raises(DatasetError, match=rf"^{stored.sources[0].audio}, which the recipe of test-000002 names, "
+                                           r"is not there; .*roots=dataset_roots\(DATASET_DIR\)"):
+        render_stems(stored, scene.audio)
+    with pytest.raises(DatasetError, match="line 3 is test-000002, not test-000001"):
+        scene_recipe(str(made), "test", 2, "test-000001")

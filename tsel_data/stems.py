@@ -8,7 +8,10 @@ writes them as headphone previews (:mod:`tsel_data.stereo`).
 
 This needs what rendering needs: the plan file and the clips (and the RIR bank) the
 recipe names, where the plan says they are (relative to the dataset folder), or where
-``corpus_dir`` and ``bank`` say.
+``corpus_dir`` and ``bank`` say. From Python::
+
+    scene = find_scene("DIR", "test/0")
+    stems, same = render_stems(scene_recipe("DIR", "test", 0, scene.scene_id), scene.audio)
 """
 from __future__ import annotations
 
@@ -32,18 +35,24 @@ from .store.plans import read_plan_lines
 MATCH_TOLERANCE = 1e-4
 
 
-def scene_recipe(root: str, split: str, index: int, scene_id: str) -> SceneRecipe:
-    """The recipe of scene ``index`` of ``split`` from the dataset's plan."""
+def scene_recipe(root: str, split: str, index: int, scene_id: str | None = None, corpus_dir: str | None = None,
+                 bank: str | None = None, as_stored: bool = False) -> SceneRecipe:
+    """The recipe of scene ``index`` of ``split`` from the dataset's plan, with the files
+    it names as paths on this machine (where the plan says, relative to the dataset, or
+    in ``corpus_dir`` and ``bank``), so :func:`render_stems` and ``render_scene`` read it
+    as it is. ``scene_id``: the scene it must be (a plan of other shards is refused).
+    ``as_stored``: as the plan holds it (clips named relative to the corpus)."""
     layout = Layout(root)
     lines = read_plan_lines(layout, split)
-    if index >= len(lines):
-        raise DatasetError(f"{layout.plan_file(split)} has no recipe for {scene_id} (the plan is missing or "
+    shown = scene_id or f"{split}/{index}"
+    if not 0 <= index < len(lines):
+        raise DatasetError(f"{layout.plan_file(split)} has no recipe for {shown} (the plan is missing or "
                            f"shorter); the stems are rendered from the scene's recipe")
     recipe = SceneRecipe.from_json(lines[index])
-    if recipe.scene_id != scene_id:
+    if scene_id is not None and recipe.scene_id != scene_id:
         raise DatasetError(f"{layout.plan_file(split)}: line {index + 1} is {recipe.scene_id}, not {scene_id}; the "
                            f"plan does not belong to these shards")
-    return recipe
+    return recipe if as_stored else dataset_roots(root, corpus_dir, bank).resolve(recipe)
 
 
 def dataset_roots(root: str, corpus_dir: str | None = None, bank: str | None = None) -> Roots:
@@ -56,13 +65,27 @@ def render_stems(recipe: SceneRecipe, mixture: np.ndarray | None = None,
     """Every source alone, float32 [S, C, T], as it sounds in the scene to receiver
     ``receiver`` (0: ``recipe.array``, k: ``recipe.receivers[k - 1]``); and whether their
     sum, with the noise, matches ``mixture`` (the stored audio, when given) within
-    :data:`MATCH_TOLERANCE`. ``roots``: where the recipe's files are. ``with_noise``: also
-    return the scene's noise as mixed ([C, T], or None without ``[noise]``)."""
-    parts = mix_parts((roots or Roots()).resolve(recipe))
+    :data:`MATCH_TOLERANCE`. ``roots``: where the files of a recipe read ``as_stored`` are
+    (:func:`dataset_roots`; a recipe from :func:`scene_recipe` names them already).
+    ``with_noise``: also return the scene's noise as mixed ([C, T], or None without
+    ``[noise]``)."""
+    roots = roots or Roots()
+    gone = _first_missing(recipe, roots)
+    if gone:
+        raise DatasetError(f"{gone}, which the recipe of {recipe.scene_id} names, is not there; a plan names "
+                           f"clips relative to its corpus: take the recipe from scene_recipe(DATASET_DIR, ...), "
+                           f"or pass roots=dataset_roots(DATASET_DIR)")
+    parts = mix_parts(roots.resolve(recipe))
     stems = parts.stems(receiver)
     mix = parts.mix if receiver == 0 else parts.others[receiver - 1][1]
     same = mixture is None or float(np.max(np.abs(mix - mixture))) <= MATCH_TOLERANCE
     return (stems, same, parts.noise_stem(receiver)) if with_noise else (stems, same)
+
+
+def _first_missing(recipe: SceneRecipe, roots: Roots) -> str | None:
+    """The first file ``recipe`` reads that is not where ``roots`` say, as the recipe names it."""
+    gone = missing_inputs(input_stats(roots.inputs([recipe])))
+    return gone[0] if gone else None
 
 
 def stem_paths(base: str, n_sources: int, noise: bool) -> list[str]:
@@ -79,12 +102,12 @@ def write_stems(root: str, scene, base: str, corpus_dir: str | None = None,
     """Write a headphone preview of each source alone next to ``base`` (a WAV path):
     ``BASE.target.stereo.wav``, ``BASE.interferer1.stereo.wav``, ... Returns the paths
     and whether the stems match the stored mixture (False: the clips changed since)."""
-    recipe = scene_recipe(root, scene.split, scene.index, scene.scene_id)
+    recipe = scene_recipe(root, scene.split, scene.index, scene.scene_id, as_stored=True)
     roots = dataset_roots(root, corpus_dir, bank)
-    gone = missing_inputs(input_stats(roots.inputs([recipe])))
+    gone = _first_missing(recipe, roots)
     if gone:
-        flag = "--bank" if recipe.bank is not None and gone[0] == recipe.bank.path else "--corpus-dir"
-        raise DatasetError(f"the stems are rendered from the clips and {gone[0]} is not where the plan says; pass "
+        flag = "--bank" if recipe.bank is not None and gone == recipe.bank.path else "--corpus-dir"
+        raise DatasetError(f"the stems are rendered from the clips and {gone} is not where the plan says; pass "
                            f"{flag} with where it is now")
     poses = (recipe.array, *recipe.receivers)
     which = next((k for k, p in enumerate(poses) if p.format == scene.format), 0)  # the receiver the scene was read for
