@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import logging
 import multiprocessing
 import multiprocessing.connection
 from multiprocessing import resource_tracker
@@ -308,11 +309,32 @@ def _signals_blocked():
     # started now, or the first spawn starts it inside the block, and multiprocessing then
     # unblocks SIGINT and SIGTERM in the spawning thread whatever they were before
     resource_tracker.ensure_running()
+    with _signals_held():
+        yield
+
+
+@contextmanager
+def _signals_held():
+    """Stop signals held back while the block runs, then delivered. Around the start of
+    pool workers: a handler that raises inside ``fork`` runs in the parent's at-fork hooks
+    (logging's lock release), where Python prints the exception as "ignored" and drops
+    it. The workers start with them held and let them through once their handlers are
+    set (:func:`_let_signals_in`)."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
     old = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _let_signals_in() -> None:
+    """In a worker started inside :func:`_signals_held`: its handlers are set, the signals
+    held back since its start (a stop of the whole group) arrive now."""
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
 
 
 # --- the local pool ----------------------------------------------------------------------------
@@ -359,6 +381,7 @@ def _worker_main(conn, initializer, parent: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     for s in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, _on_worker_signal)
+    _let_signals_in()
     if initializer is not None:
         initializer()
     while True:
@@ -431,6 +454,31 @@ def ordered_pool(workers: int, initializer: Callable | None = None, initargs: tu
     ex.shutdown(wait=True)
 
 
+@contextmanager
+def _cluster_start():
+    """A local Dask cluster that cannot start (a worker process killed while it starts, out
+    of memory, no free port) is one DatasetError line. Dask says why in a chained
+    RuntimeError ("Nanny failed to start") and logs the same traceback itself: its logs
+    are held back while the cluster starts, the first line of the deepest cause is kept."""
+    loggers = [logging.getLogger(n) for n in ("distributed", "distributed.nanny", "distributed.deploy.spec")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    except (RuntimeError, OSError, TimeoutError) as e:
+        cause = e
+        while cause.__cause__ is not None:
+            cause = cause.__cause__
+        why = (str(cause).splitlines() or [type(cause).__name__])[0][:200]
+        raise DatasetError(f"the local Dask cluster did not start ({why}): a worker process died while starting "
+                           f"(killed, or out of memory?); nothing was rendered: run the command again, with fewer "
+                           f"--workers if memory is short, or with --executor local") from None
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)
+
+
 # --- the runner ----------------------------------------------------------------------------------
 
 
@@ -476,8 +524,9 @@ class Runner:
     def _start(self) -> None:
         if self.executor == "local" and self.workers > 1:
             ctx = multiprocessing.get_context()
-            for _ in range(self.workers):
-                self._workers.append(_Worker(ctx, prepare_worker))
+            with _signals_held():
+                for _ in range(self.workers):
+                    self._workers.append(_Worker(ctx, prepare_worker))
         elif self.executor.startswith("dask"):
             try:
                 from dask.distributed import Client, LocalCluster  # optional extra, slow to import
@@ -486,7 +535,7 @@ class Runner:
             if self.executor == "dask-local":
                 # the cluster's workers get no signal of the group: the main process stops
                 # them (a worker killed by a group's SIGTERM would take its shard along)
-                with _signals_blocked():
+                with _signals_blocked(), _cluster_start():
                     self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
                                                  host="127.0.0.1", dashboard_address=None)
                     self._client = Client(self._cluster)
