@@ -177,6 +177,9 @@ def draw_array_view(ax, scene, small: bool = False) -> None:
         ax.set_yticks(np.arange(1.0, 1.15 * far, 1.0))
         ax.set_yticklabels([])
         ax.set_thetagrids((0, 90, 180, 270), ("front", "left", "back", "right"), fontsize=7)
+        additive = sum(not np.isfinite(scene.azimuth[s]).any() for s in range(scene.n_sources))
+        if additive:  # a source without a position is not drawn: say that it is there
+            ax.text(0.0, 0.0, f"+{additive} additive", transform=ax.transAxes, fontsize=7, color="0.3")
         return
     ax.set_rlabel_position(_free_angle(np.concatenate(seen) if seen else np.zeros(0)))
     ax.set_thetagrids(range(0, 360, 45), ("0° front", "45°", "90° left", "135°", "±180° back", "−135°", "−90° right",

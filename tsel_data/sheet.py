@@ -181,14 +181,15 @@ def _write_picture_sheet(root: str, path: str, chosen, receiver) -> int:
     plt = pyplot()
     cols = min(SHEET_COLUMNS, len(chosen))
     rows = -(-len(chosen) // cols)
-    fig = plt.figure(figsize=(2.7 * cols, 3.0 * rows + 0.4))
+    height = 2.9 * rows + 0.5
+    fig = plt.figure(figsize=(2.7 * cols, height))
     for k, scene in enumerate(_scenes(root, chosen, receiver)):
         ax = fig.add_subplot(rows, cols, k + 1, projection="polar")
         draw_array_view(ax, scene, small=True)
         ax.set_title(textwrap.fill(f"{scene.scene_id}: {scene.query}", 34), fontsize=7.5, pad=12)
     fig.suptitle(f"{os.path.basename(os.path.normpath(root))}: the array frame from above (front up, left to the "
                  f"left, rings 1 m apart); red star = target, dots = interferers, x = start of a moving source",
-                 fontsize=9)
-    fig.subplots_adjust(hspace=0.6, wspace=0.45, top=1.0 - 0.55 / (3.0 * rows + 0.4))
+                 fontsize=9, y=1.0 - 0.1 / height, va="top")
+    fig.subplots_adjust(hspace=0.5, wspace=0.45, top=1.0 - 1.05 / height)
     save_figure(fig, path, dpi=90)
     return len(chosen)
