@@ -35,7 +35,9 @@ REPO = DOCS.parent
 PAGES = ["commands/generate.md", "commands/check.md", "commands/inspect.md", "commands/stats.md",
          "commands/export.md", "commands/eval.md", "commands/verify.md", "config.md", "scaling.md", "acoustics.md"]
 # pictures the pages show, copied from the sandbox when outputs are rewritten
-PICTURES = {"work/inspect.png": "commands/img/inspect-test-000000.png", "work/stats.png": "commands/img/stats-demo.png"}
+PICTURES = {"work/inspect.png": "commands/img/inspect-test-000000.png", "work/stats.png": "commands/img/stats-demo.png",
+            "work/inspect-bank.png": "commands/img/inspect-bank-test-000001.png",
+            "work/sheet.png": "commands/img/inspect-sheet-test.png"}
 _MARK = re.compile(r"^<!-- (run|file)(?::\s*(.*?))? -->$")
 _FENCE = re.compile(r"^```(\w*)\s*$")
 # a stand-in for Slurm's sbatch: runs SCRIPT once per task of --array=A-B, in order
