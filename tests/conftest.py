@@ -8,6 +8,8 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "PRA_NU
     os.environ.setdefault(_v, "1")
 # remembered clip checks go to a folder of this run, not the user's cache (subprocesses inherit it)
 os.environ.setdefault("TSEL_CACHE_DIR", tempfile.mkdtemp(prefix="tsel-test-cache-"))
+# and prepared clips (made by every full clip check) too, not beside the shared demo corpus's audio
+os.environ.setdefault("TSEL_CLIP_CACHE", tempfile.mkdtemp(prefix="tsel-test-clips-"))
 
 
 @pytest.fixture(scope="session")

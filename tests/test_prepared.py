@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from tsel_data import audio
+from tsel_data import audio, prepared
 from tsel_data.config import load_config
+from tsel_data.errors import AudioError, DatasetError
 from tsel_data.pipeline import generate
 from tsel_data.store.integrity import sha256_file
 
@@ -21,6 +22,8 @@ def _stereo_44k_corpus(src, dst):
 
     shutil.copytree(src, dst)
     for f in os.listdir(os.path.join(src, "audio")):
+        if not f.endswith(".wav"):
+            continue
         x, fs = sf.read(os.path.join(src, "audio", f), dtype="float32")
         x = x if x.ndim == 1 else x.mean(axis=1)
         if fs != 24000:
@@ -35,24 +38,137 @@ def _shards(d):
             if not f.endswith(".seal.json")}
 
 
-def test_prepared_clips_give_the_same_scenes_without_decoding(tmp_path, demo_corpus, monkeypatch):
-    corpus = _stereo_44k_corpus(demo_corpus, str(tmp_path / "corpus"))
-    args = dict(preset="demo", corpus_dir=corpus, splits={"train": 3, "val": 0, "test": 0},
-                overrides=["audio.duration=2.0", "output.shard_size=3"])
-    generate(load_config(**args), str(tmp_path / "a"), workers=1, progress=False)
+ARGS = dict(preset="demo", splits={"train": 3, "val": 0, "test": 0},
+            overrides=["audio.duration=2.0", "output.shard_size=3"])
+
+
+def _config(corpus, *more):
+    return load_config(**{**ARGS, "corpus_dir": corpus, "overrides": ARGS["overrides"] + list(more)})
+
+
+def _forbid_decoding(monkeypatch):
+    audio._load_clip_cached.cache_clear()
+
+    def no_decoding(*a, **k):
+        raise AssertionError("a prepared clip was decoded again")
+    monkeypatch.setattr(audio, "load_clip", no_decoding)
+
+
+@pytest.fixture(scope="module")
+def decoded(tmp_path_factory, demo_corpus):
+    """44.1 kHz stereo clips and the shards rendered from them decoded (nothing prepared)."""
+    root = tmp_path_factory.mktemp("decoded")
+    corpus = _stereo_44k_corpus(demo_corpus, str(root / "corpus"))
+    generate(_config(corpus, "corpus.prepare_on_check=false"), str(root / "a"), workers=1, progress=False)
+    return corpus, _shards(str(root / "a"))
+
+
+def test_prepared_clips_give_the_same_scenes_without_decoding(tmp_path, decoded, monkeypatch):
+    src, want = decoded
+    corpus = shutil.copytree(src, str(tmp_path / "corpus"))
+    monkeypatch.delenv("TSEL_CLIP_CACHE", raising=False)  # beside the audio, as by default
     r = subprocess.run([sys.executable, "-m", "tsel_data.cli", "corpus", "prepare", "--preset", "demo",
                         "--corpus-dir", corpus, "--split", "train=3", "--split", "val=0", "--split", "test=0",
                         "--set", "audio.duration=2.0", "--quiet", "--workers", "1"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "prepared 60 clips" in r.stdout
     assert os.listdir(os.path.join(corpus, "audio", ".tsel-clips"))
-    audio._load_clip_cached.cache_clear()
+    _forbid_decoding(monkeypatch)
+    generate(_config(corpus, "corpus.prepare_on_check=false"), str(tmp_path / "b"), workers=1, progress=False)
+    assert _shards(str(tmp_path / "b")) == want
 
-    def no_decoding(*a, **k):
-        raise AssertionError("a prepared clip was decoded again")
-    monkeypatch.setattr(audio, "load_clip", no_decoding)
-    generate(load_config(**args), str(tmp_path / "b"), workers=1, progress=False)
-    assert _shards(str(tmp_path / "a")) == _shards(str(tmp_path / "b"))
+
+def test_the_full_clip_check_prepares_the_clips_and_they_render_the_same_shards(tmp_path, decoded, monkeypatch):
+    src, want = decoded
+    corpus = shutil.copytree(src, str(tmp_path / "corpus"))
+    _forbid_decoding(monkeypatch)  # the check decodes each clip once, and scenes read what it prepared
+    generate(_config(corpus), str(tmp_path / "c"), workers=1, progress=False)
+    assert _shards(str(tmp_path / "c")) == want
+    monkeypatch.undo()
+    r = subprocess.run([sys.executable, "-m", "tsel_data.cli", "corpus", "prepare", "--preset", "demo",
+                        "--corpus-dir", corpus, "--split", "train=3", "--split", "val=0", "--split", "test=0",
+                        "--set", "audio.duration=2.0", "--quiet", "--workers", "1"], capture_output=True, text=True)
+    assert "prepared 0 clips (60 already were)" in r.stdout, r.stderr
+
+
+def _prepared_clip(tmp_path, x=None):
+    p = str(tmp_path / "c.wav")
+    sf.write(p, 0.1 * np.sin(np.arange(48000, dtype=np.float32) / 7), 48000, subtype="FLOAT")
+    assert audio.prepare_clip(p, 24000, 1.0, 0.0)
+    st = prepared.stamp_of(os.stat(p))
+    if x is not None:  # a prepared clip with a valid record, holding what no clip may
+        prepared.write_prepared(p, st, 24000, 1.0, 0.0, x)
+    audio._load_clip_cached.cache_clear()
+    return p, prepared.prepared_path(p, st, 24000, 1.0, 0.0)
+
+
+def test_a_prepared_clip_replaced_by_other_audio_of_its_shape_is_refused(tmp_path):
+    p, npy = _prepared_clip(tmp_path)
+    np.save(npy, np.full(24000, 0.3, np.float32))  # same dtype and shape, other samples
+    with pytest.raises(AudioError, match=r"c\.wav: its prepared form .*: the prepared file changed since it was "
+                                         r"written.*tsel corpus prepare"):
+        audio.load_clip_cached(p, 24000, 1.0, 0.0)
+    problem = audio.keep_prepared(p, 24000, 1.0, 0.0, deep=True)  # what tsel check reports
+    assert problem and "prepared file changed" in problem
+    assert audio.prepare_clip(p, 24000, 1.0, 0.0)  # preparing again mends it
+    audio._load_clip_cached.cache_clear()
+    np.testing.assert_array_equal(audio.load_clip_cached(p, 24000, 1.0, 0.0), audio.load_clip(p, 24000, 1.0, 0.0))
+
+
+def test_a_clip_rewritten_with_its_old_size_and_mtime_is_not_served_its_old_preparation(tmp_path):
+    p, _ = _prepared_clip(tmp_path)
+    st = os.stat(p)
+    sf.write(p, 0.2 * np.cos(np.arange(48000, dtype=np.float32) / 5), 48000, subtype="FLOAT")
+    os.utime(p, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert os.path.getsize(p) == st.st_size and os.stat(p).st_mtime_ns == st.st_mtime_ns
+    with pytest.raises(AudioError, match="the clip changed since it was prepared"):
+        audio.load_clip_cached(p, 24000, 1.0, 0.0)
+
+
+@pytest.mark.parametrize("bad,why", [(np.nan, "contains NaN or Inf samples"), (3e36, "has samples of amplitude 3e")])
+def test_a_prepared_clip_holding_what_no_clip_may_is_blamed_on_the_clip(tmp_path, bad, why):
+    x = np.zeros(24000, np.float32)
+    x[100] = bad
+    p, npy = _prepared_clip(tmp_path, x)
+    with pytest.raises(AudioError, match=rf"c\.wav: its prepared form {npy} {why}"):
+        audio.load_clip_cached(p, 24000, 1.0, 0.0)
+    assert why in audio.keep_prepared(p, 24000, 1.0, 0.0, deep=True)
+
+
+def test_tsel_check_refuses_a_changed_prepared_clip(tmp_path, decoded, tsel_cli):
+    src, _ = decoded
+    corpus = shutil.copytree(src, str(tmp_path / "corpus"))
+    cfg = _config(corpus)
+    args = ["check", "--preset", "demo", "--corpus-dir", corpus, "--split", "train=3", "--split", "val=0",
+            "--split", "test=0", "--set", "audio.duration=2.0"]
+    assert tsel_cli.run(*args)[0] == 0  # and writes no prepared clip
+    from tsel_data.catalog import build_catalog, prepare_corpus
+    clips = build_catalog(cfg, corpus).clips
+    prepare_corpus(cfg, clips)
+    victim = clips["train"][0]
+    st = prepared.stamp_of(os.stat(victim.audio))
+    np.save(prepared.prepared_path(victim.audio, st, 24000, 2.0, victim.offset), np.zeros(48000, np.float32))
+    code, out, err = tsel_cli.run(*args)
+    assert code == 2, (out, err)  # a config check's problems
+    assert f"clip {victim.id}: " in out + err and "prepared file changed" in out + err
+
+
+def test_a_huge_clip_is_blamed_on_the_clip_not_the_simulator(tmp_path, demo_corpus):
+    corpus = shutil.copytree(demo_corpus, str(tmp_path / "corpus"))
+    for f in os.listdir(os.path.join(corpus, "audio")):
+        if f.endswith(".wav"):
+            x, fs = sf.read(os.path.join(corpus, "audio", f), dtype="float32")
+            sf.write(os.path.join(corpus, "audio", f), x * np.float32(3e36 / max(np.max(np.abs(x)), 1e-9)), fs,
+                     subtype="FLOAT")
+    cfg = _config(corpus, 'corpus.check="none"')
+    with pytest.raises(DatasetError) as e:
+        generate(cfg, str(tmp_path / "out"), workers=1, progress=False)
+    msg = str(e.value)
+    assert "has samples of amplitude " in msg and "e+36" in msg and "simulator" not in msg, msg
+    assert " audio/" in msg and corpus not in msg, msg  # named relative to the corpus
+    wav = os.path.join(corpus, "audio", sorted(f for f in os.listdir(os.path.join(corpus, "audio"))
+                                              if f.endswith(".wav"))[0])
+    assert "has samples of amplitude " in audio.check_clip("x", wav, "full", 1.0, 8, 0.0, 2.0, 24000).problem
 
 
 def test_a_changed_clip_is_not_served_from_its_old_preparation(tmp_path):

@@ -16,19 +16,31 @@ import numpy as np
 import soundfile as sf
 
 from .atomic import atomic_output
-from .prepared import read_prepared, write_prepared
-from .errors import AudioError
+from .errors import AudioError, DatasetError
+from .prepared import REMAKE, lookup, prepared_path, stamp_of, write_prepared
 
 EPS = 1e-12
 # Sample rates a recording can have; a header outside says the file is broken (or not audio).
 MIN_RATE, MAX_RATE = 1000, 768000
 SILENT_PEAK = 1e-5  # -100 dBFS
 RELATIVE_SILENCE = 1e-3  # -60 dB: what a mixdown or the scenes' band keeps of a clip, below which it is gone
+# +80 dBFS. Float files may exceed full scale a little, never by this much: such samples
+# are not audio in full-scale units, and their squares overflow float32 in the mixer.
+MAX_PEAK = 1e4
+
+
+def sample_problem(x: np.ndarray) -> str | None:
+    """What makes decoded samples unusable in a scene (NaN or Inf, or an absurd peak), or None."""
+    if not np.all(np.isfinite(x)):
+        return "contains NaN or Inf samples"
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    if peak > MAX_PEAK:
+        return f"has samples of amplitude {peak:.3g} (above {MAX_PEAK:g}, +80 dBFS: not audio in full-scale units)"
+    return None
 
 
 def load_clip(path: str, fs: int, duration: float, offset: float = 0.0) -> np.ndarray:
     """Mono float32 [round(duration·fs)] at ``fs``: read, downmix, resample, pad with zeros or cut."""
-    n_out = int(round(duration * fs))
     if os.path.exists(path) and not os.path.isfile(path):  # a FIFO would block forever
         raise AudioError(f"{path} is not a regular file (a pipe, device or socket); point the manifest at an audio file")
     try:
@@ -39,15 +51,25 @@ def load_clip(path: str, fs: int, duration: float, offset: float = 0.0) -> np.nd
             start = int(round(offset * sr))
             if start:
                 f.seek(min(start, f.frames))
-            # read a little more than needed so the resampler's edge sees real signal
-            need = int(math.ceil(duration * sr)) + 64
-            x = f.read(frames=need, dtype="float32", always_2d=True)
+            x = f.read(frames=_span(duration, sr), dtype="float32", always_2d=True)
     except (sf.LibsndfileError, RuntimeError, OSError) as e:
         raise AudioError(f"cannot read audio {path}: {e}; check the file or remove it from the manifest") from None
-    if not np.all(np.isfinite(x)):
-        # corpus.check below "full" lets such clips through; never mix NaN into a scene
-        raise AudioError(f"{path} contains NaN or Inf samples; fix or remove the clip "
-                         f"(corpus.check = \"full\" finds such clips before rendering)")
+    problem = sample_problem(x)
+    if problem:
+        # corpus.check below "full" lets such clips through; never mix them into a scene
+        raise AudioError(f"{path} {problem}; fix or remove the clip (corpus.check = \"full\" finds such clips "
+                         f"before rendering)")
+    return _as_scene_clip(x, sr, fs, int(round(duration * fs)))
+
+
+def _span(duration: float, sr: int) -> int:
+    """Frames load_clip reads: a little more than the scene uses, so the resampler's edge
+    sees real signal."""
+    return int(math.ceil(duration * sr)) + 64
+
+
+def _as_scene_clip(x: np.ndarray, sr: int, fs: int, n_out: int) -> np.ndarray:
+    """Decoded frames [T, C] at ``sr`` -> the mono float32 [n_out] at ``fs`` a scene hears."""
     x = x.mean(axis=1) if x.shape[1] > 1 else x[:, 0]
     if sr != fs:
         from scipy.signal import resample_poly  # imported here: scipy.signal costs ~0.6 s at CLI start-up
@@ -122,11 +144,14 @@ class ClipCheck:
     samplerate: int | None = None
     channels: int | None = None
     missing: bool = False  # the file does not exist (a partial download), not a bad file
+    prepared: str | None = None  # the clip is good, but its prepared form is not (audio.keep_prepared)
 
 
 def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_channels: int,
-               offset: float = 0.0, duration: float | None = None, fs: int | None = None) -> ClipCheck:
-    """Check a clip at ``level`` = exists | header | full (decode: NaN, silence).
+               offset: float = 0.0, duration: float | None = None, fs: int | None = None,
+               prepare: bool = False) -> ClipCheck:
+    """Check a clip at ``level`` = exists | header | full (decode: NaN, Inf, absurd peaks,
+    silence).
 
     ``full`` decodes only the part a scene uses, ``offset`` .. ``offset + duration`` (the
     whole file if ``duration`` is None), and judges it as a scene will hear it: mixed
@@ -134,6 +159,10 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
     rate ``fs`` is lower than the clip's, in the band below fs/2 (a clip with only
     ultrasonic content is silent after resampling). A clip silent there would be an
     inaudible source whose caption still describes it.
+
+    ``prepare`` (with ``full``, ``duration`` and ``fs``): a good clip that scenes would
+    resample or mix down gets its prepared form (prepared.py) from this same decode.
+    Without it, a prepared form that exists is checked (:func:`keep_prepared`).
     """
     if os.path.exists(path) and not os.path.isfile(path):
         return ClipCheck(clip_id, f"{path} is not a regular file (a pipe, device or socket)")
@@ -163,12 +192,17 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
     sr = info.samplerate
     start = int(round(offset * sr))
     frames = -1 if duration is None else int(round(duration * sr))
+    making = prepare and duration is not None and fs is not None and wants_preparing(sr, info.channels, fs)
     try:  # only the part a scene uses: a 4 GiB file costs what its 10 s cost
-        used, _ = sf.read(path, start=min(start, info.frames), frames=frames, dtype="float32", always_2d=True)
+        # (what load_clip reads, when the prepared form is made from this decode)
+        read, _ = sf.read(path, start=min(start, info.frames), frames=_span(duration, sr) if making else frames,
+                          dtype="float32", always_2d=True)
     except (sf.LibsndfileError, RuntimeError, OSError) as e:
         return ClipCheck(clip_id, f"unreadable audio {path}: {str(e).splitlines()[0]}", **base)
-    if not np.all(np.isfinite(used)):
-        return ClipCheck(clip_id, f"{path} contains NaN or Inf samples", **base)
+    used = read[:frames] if making else read
+    problem = sample_problem(read)  # all load_clip reads: what render would refuse
+    if problem:
+        return ClipCheck(clip_id, f"{path} {problem}", **base)
     span = "" if duration is None else f" in the {duration:g} s a scene uses"
     mono = used.mean(axis=1)
     if mono.size == 0 or float(np.max(np.abs(mono))) < SILENT_PEAK:
@@ -180,7 +214,48 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
     if fs is not None and sr > fs and _in_band_rms(mono, sr, fs / 2) < RELATIVE_SILENCE * _rms(mono):
         return ClipCheck(clip_id, f"{path} has no content below {fs / 2:g} Hz{span} (the scenes' band at {fs} Hz): "
                                   f"it would be silent after resampling", **base)
-    return ClipCheck(clip_id, None, **base)
+    if duration is None or fs is None:
+        return ClipCheck(clip_id, None, **base)
+    made = (lambda: _as_scene_clip(read, sr, fs, int(round(duration * fs)))) if making else None
+    prepared = keep_prepared(path, fs, duration, offset, prepare, making, made, deep=not prepare)
+    return ClipCheck(clip_id, None, **base, prepared=prepared)
+
+
+def wants_preparing(samplerate: int | None, channels: int | None, fs: int) -> bool:
+    """Whether a clip's prepared form saves a scene work: it is resampled or mixed down
+    (a mono clip at the scenes' rate reads as fast as its prepared form)."""
+    return samplerate != fs or (channels or 1) > 1
+
+
+def keep_prepared(path: str, fs: int, duration: float, offset: float, prepare: bool = False, wanted: bool = False,
+                  make=None, deep: bool = False) -> str | None:
+    """Keep a good clip's prepared form in step with it; None, or what is wrong with it.
+
+    ``prepare``: make it again when it does not match its record, and make it when it is
+    absent and ``wanted`` (:func:`wants_preparing`); ``make()`` gives the samples, else
+    the clip is decoded. Otherwise a prepared form that exists is
+    checked against its record, at the cost of a ``stat`` (``deep``: its samples and the
+    clip's bytes are hashed too, and the samples checked as a source clip's are), and
+    what is wrong is returned for the check to report: render would refuse it.
+    """
+    try:
+        stamp = stamp_of(os.stat(path))
+    except OSError:
+        return None  # gone since its check: found again where it is read
+    state, x, why = lookup(path, stamp, fs, duration, offset, read=deep, deep=deep)
+    if prepare and (state == "changed" or (state == "absent" and wanted)):
+        try:
+            write_prepared(path, stamp, fs, duration, offset, make() if make else load_clip(path, fs, duration, offset))
+        except (OSError, DatasetError):
+            pass  # a read-only corpus or a full disk: a prepared clip only ever saves time
+        return None
+    if state == "changed":
+        return f"{path}: its prepared form {prepared_path(path, stamp, fs, duration, offset)}: {why}; {REMAKE}"
+    if x is not None:
+        problem = sample_problem(x) or ("is silent (peak below -100 dBFS)" if np.max(np.abs(x)) < SILENT_PEAK else None)
+        if problem:
+            return f"{path}: its prepared form {prepared_path(path, stamp, fs, duration, offset)} {problem}; {REMAKE}"
+    return None
 
 
 def _rms(x: np.ndarray) -> float:
@@ -203,11 +278,14 @@ def _in_band_rms(x: np.ndarray, sr: int, cutoff: float, n_fft: int = 4096, windo
 
 def load_clip_cached(path: str, fs: int, duration: float, offset: float) -> np.ndarray:
     """load_clip with a small per-process cache (clips recur across a shard's scenes) and
-    prepared clips (prepared.py) when ``tsel corpus prepare`` made them. A file that
-    changed (size or modification time) is read again."""
+    prepared clips (prepared.py) when ``tsel corpus prepare`` or the clip check made them.
+    A file that changed (size, modification time, inode or change time) is read again.
+
+    Raises AudioError naming the clip when its prepared form does not match its record
+    (the clip or the prepared file changed since it was made) or holds samples no clip
+    may (NaN, Inf, absurd peaks): those are the clip's problems, never the simulator's."""
     try:
-        st = os.stat(path)
-        stamp = (st.st_size, st.st_mtime_ns)
+        stamp = stamp_of(os.stat(path))
     except OSError:
         stamp = None  # load_clip says what is wrong
     return _load_clip_cached(path, stamp, fs, duration, offset)
@@ -215,18 +293,28 @@ def load_clip_cached(path: str, fs: int, duration: float, offset: float) -> np.n
 
 @lru_cache(maxsize=64)
 def _load_clip_cached(path: str, stamp, fs: int, duration: float, offset: float) -> np.ndarray:
-    x = read_prepared(path, stamp, fs, duration, offset) if stamp is not None else None
+    state, x, why = lookup(path, stamp, fs, duration, offset) if stamp is not None else ("absent", None, "")
+    if state == "changed":
+        raise AudioError(f"{path}: its prepared form {prepared_path(path, stamp, fs, duration, offset)}: {why}; "
+                         f"{REMAKE}")
     if x is None:
         x = load_clip(path, fs, duration, offset)
+    else:
+        problem = sample_problem(x)
+        if problem:
+            raise AudioError(f"{path}: its prepared form {prepared_path(path, stamp, fs, duration, offset)} {problem}; "
+                             f"{REMAKE}")
     x.setflags(write=False)
     return x
 
 
 def prepare_clip(path: str, fs: int, duration: float, offset: float) -> bool:
-    """Make the prepared form of a clip unless it exists; True when it was made now."""
-    st = os.stat(path)
-    stamp = (st.st_size, st.st_mtime_ns)
-    if read_prepared(path, stamp, fs, duration, offset) is not None:
+    """Make the prepared form of a clip unless it exists and matches its record (the
+    clip's bytes are hashed: preparing is when that is checked in full); True when it was
+    made now. A prepared form that no longer matches is made again."""
+    stamp = stamp_of(os.stat(path))
+    state, x, _ = lookup(path, stamp, fs, duration, offset, deep=True)
+    if state == "ok" and sample_problem(x) is None:
         return False
     write_prepared(path, stamp, fs, duration, offset, load_clip(path, fs, duration, offset))
     return True

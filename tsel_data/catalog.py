@@ -19,10 +19,10 @@ import json
 import os
 import unicodedata
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from .atomic import write_json, write_lines
-from .audio import ClipCheck, check_clip, prepare_clip
+from .audio import ClipCheck, check_clip, keep_prepared, prepare_clip, wants_preparing
 from .clip import Clip
 from .clipcache import ClipCache, file_key, settings_key
 from .config import Config
@@ -309,6 +309,8 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
         floor = cfg.corpus.min_samplerate
         for clip, chk in zip(clips, check_clips(clips, cfg, workers, progress, desc=f"check {split}")):
             if chk.problem is None:
+                if chk.prepared:  # the clip is good; what render would refuse is its prepared form
+                    scan.problems.append(AudioError(f"{clip.origin}: clip {clip.id}: {chk.prepared}"))
                 rate = chk.samplerate
                 if rate and floor and rate < floor:
                     left_out += 1
@@ -457,12 +459,13 @@ def check_clips(clips: list[Clip], cfg: Config, workers: int = 1, progress: bool
     level = cfg.corpus.check
     if level == "none":
         return [ClipCheck(c.id, None) for c in clips]
+    prepare = level == "full" and cfg.corpus.prepare_on_check
     args = [(c.id, c.audio, level, cfg.corpus.min_duration, cfg.corpus.max_channels, c.offset, cfg.audio.duration,
-             cfg.audio.fs) for c in clips]
+             cfg.audio.fs, prepare) for c in clips]
     if level == "exists":
         with bar(len(args), desc, "clip", progress) as b:
             return list(_counted(map(_check, args), b))
-    keys = [file_key(c.audio, settings_key(*a[2:])) for c, a in zip(clips, args)]
+    keys = [file_key(c.audio, settings_key(*a[2:8])) for c, a in zip(clips, args)]
     out: list[ClipCheck | None] = [None] * len(clips)
     with ClipCache() as cache:
         known = cache.get([k for k in keys if k is not None])
@@ -471,7 +474,7 @@ def check_clips(clips: list[Clip], cfg: Config, workers: int = 1, progress: bool
             if key is None:
                 out[i] = _check(args[i])  # no such file: found missing at once
             elif key in known:
-                out[i] = ClipCheck(clips[i].id, *known[key])
+                out[i] = _remembered(clips[i], ClipCheck(clips[i].id, *known[key]), cfg, level, prepare)
             else:
                 todo.append(i)
         # the whole split counts, those remembered done at once: the bar says what is left
@@ -497,6 +500,17 @@ def _counted(results, b):
 
 def _check(a) -> ClipCheck:
     return check_clip(*a)
+
+
+def _remembered(clip: Clip, verdict: ClipCheck, cfg: Config, level: str, prepare: bool) -> ClipCheck:
+    """A remembered verdict, with the clip's prepared form kept in step (made when the
+    check would have made it; checked as the check would have: audio.keep_prepared)."""
+    if verdict.problem is not None or level != "full":
+        return verdict
+    fs, duration = cfg.audio.fs, cfg.audio.duration
+    wanted = prepare and wants_preparing(verdict.samplerate, verdict.channels, fs)
+    problem = keep_prepared(clip.audio, fs, duration, clip.offset, prepare, wanted, deep=not prepare)
+    return replace(verdict, prepared=problem) if problem else verdict
 
 
 def prepare_corpus(cfg: Config, clips: dict[str, list[Clip]], workers: int = 1, progress=None) -> dict:

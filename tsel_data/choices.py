@@ -148,6 +148,13 @@ class CheckLevel(StrEnum):
     NONE = "none"
 
 
+class Fingerprint(StrEnum):
+    """``corpus.fingerprint``: what a shard's seal says of each input it read (store/integrity.py)."""
+
+    STAT = "stat"
+    HASH = "hash"
+
+
 class BadClipPolicy(StrEnum):
     SKIP = "skip"
     FAIL = "fail"

@@ -18,7 +18,7 @@ import sqlite3
 from .audio import ClipCheck
 
 # Bump when check_clip's verdicts change meaning, so old verdicts are not reused.
-CHECK_VERSION = 1
+CHECK_VERSION = 2  # 2: samples above audio.MAX_PEAK are a bad clip
 _SCHEMA = ("CREATE TABLE IF NOT EXISTS checks (path TEXT, size INTEGER, mtime_ns INTEGER, settings TEXT, "
            "problem TEXT, duration REAL, samplerate INTEGER, channels INTEGER, "
            "PRIMARY KEY (path, size, mtime_ns, settings))")

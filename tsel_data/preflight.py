@@ -2,7 +2,8 @@
 
 The config's fields and geometry (in the largest *and* the smallest room the ranges
 allow), the RIR bank (when ``room.bank`` is set), the output folder, every manifest,
-every clip (``corpus.check`` level, ``on_bad_clip`` policy), duplicate clip ids, and
+every clip (``corpus.check`` level, ``on_bad_clip`` policy; at ``full``, each clip's
+prepared form too: its record, its bytes and its samples), duplicate clip ids, and
 finally the whole plan sampled in memory (planning is cheap: ~0.2 ms per scene), so a
 scene that cannot be placed is found here and not after hours of rendering.
 
@@ -16,6 +17,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from dataclasses import replace
 
 from .banks.scenes import bank_problems, resolve_bank
 from .catalog import BUILTIN_DEMO, resolve_corpus_dir, reuse_stop, scan_catalog
@@ -129,7 +131,9 @@ def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: Chec
         rep.error(e)
         return {}
     rep.facts["corpus_dir"] = corpus_dir if cfg.corpus.dir != BUILTIN_DEMO else BUILTIN_DEMO
-    scan = scan_catalog(cfg, corpus_dir, workers, progress=None)  # bars only on a terminal
+    # a check writes nothing: prepared clips are checked here (hashed), never made
+    looking = replace(cfg, corpus=replace(cfg.corpus, prepare_on_check=False))
+    scan = scan_catalog(looking, corpus_dir, workers, progress=None)  # bars only on a terminal
     for e in scan.problems:
         rep.error(e)
     for b in scan.bad:

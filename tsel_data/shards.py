@@ -110,12 +110,14 @@ def load_plan_part(layout: Layout, cfg: Config, tasks: list[ShardTask]) -> dict[
     return parts
 
 
-def inputs_here(out_dir: str, shard_recipes: list, roots: Roots, verb: str) -> list[list]:
+def inputs_here(out_dir: str, shard_recipes: list, roots: Roots, verb: str, content: bool = False) -> list[list]:
     """:func:`~tsel_data.store.integrity.input_stats` of each shard's inputs (read once,
-    for its fingerprint). Refuses, in one line and before any shard is touched, when files
+    for its fingerprint; ``content``: hashed, each file once). Refuses, in one line and
+    before any shard is touched, when files
     are not where the roots say: a moved or unmounted corpus or bank is not a changed one,
     and taking it for one would render every finished shard again (or strip their seals)."""
-    stats = [input_stats(roots.inputs(recipes)) for recipes in shard_recipes]
+    hashes: dict = {}
+    stats = [input_stats(roots.inputs(recipes), content, hashes) for recipes in shard_recipes]
     missing = sorted({name for st in stats for name in missing_inputs(st)})
     if not missing:
         return stats
@@ -132,18 +134,22 @@ def inputs_here(out_dir: str, shard_recipes: list, roots: Roots, verb: str) -> l
                        f"... --resume`); nothing was changed")
 
 
-def expected_fingerprint(recipes: list[SceneRecipe], roots: Roots, stats: list | None = None) -> str:
+def expected_fingerprint(recipes: list[SceneRecipe], roots: Roots, stats: list | None = None,
+                         content: bool = False) -> str:
     """The fingerprint a shard of these recipes must carry, with its inputs (clips, RIR
-    bank) as they are now (``stats``, when :func:`inputs_here` has read them already)."""
+    bank) as they are now (``stats``, when :func:`inputs_here` has read them already;
+    ``content``: ``corpus.fingerprint = "hash"``)."""
     if stats is None:
-        stats = input_stats(roots.inputs(recipes))
+        stats = input_stats(roots.inputs(recipes), content)
     return shard_fingerprint([r.to_json() for r in recipes], stats)
 
 
-def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attrs: dict, roots: Roots) -> int:
-    """Render one shard's recipes and write the shard, sealed with what it was made from;
-    returns its scene count."""
-    fingerprint = expected_fingerprint(recipes, roots)  # before reading anything: a clip changed meanwhile is stale
+def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attrs: dict, roots: Roots,
+                 content: bool = False) -> int:
+    """Render one shard's recipes and write the shard, sealed with what it was made from
+    (``content``: its inputs hashed); returns its scene count."""
+    # before reading anything: a clip changed meanwhile is stale
+    fingerprint = expected_fingerprint(recipes, roots, content=content)
     with ShardWriter(out_dir, task.split, task.shard, len(recipes), attrs, fingerprint) as w:
         for r in recipes:  # one scene's audio in memory at a time
             w.add(render_scene(r, roots))
@@ -153,11 +159,11 @@ def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attr
 def _render_task(args) -> tuple[ShardTask, int, str]:
     """One shard; a bad input met only now (a clip or an RIR the checks let through) is
     reported, not raised, so the other shards go on."""
-    out_dir, task, recipes, attrs, roots = args
+    out_dir, task, recipes, attrs, roots, content = args
     try:
-        return task, render_shard(out_dir, task, recipes, attrs, roots), ""
-    except (AudioError, BankError) as e:
-        return task, 0, str(e)
+        return task, render_shard(out_dir, task, recipes, attrs, roots, content), ""
+    except (AudioError, BankError) as e:  # clips named as the plan names them, relative to the corpus
+        return task, 0, str(e).replace(os.path.join(roots.corpus, ""), "") if roots.corpus else str(e)
 
 
 def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, progress: bool = True,
@@ -211,7 +217,8 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
         plans = load_plan_part(layout, cfg, tasks)  # only the recipes of these shards
         recipes = [plans[t.split][t.start:t.stop] for t in tasks]
         todo, redo = [], []
-        for t, rs, stats in zip(tasks, recipes, inputs_here(out_dir, recipes, roots, "render")):
+        content = cfg.corpus.fingerprint == "hash"
+        for t, rs, stats in zip(tasks, recipes, inputs_here(out_dir, recipes, roots, "render", content)):
             state, why = shard_state(layout, t.split, t.shard, expected_fingerprint(rs, roots, stats))
             if state != "complete":
                 todo.append(t)
@@ -229,7 +236,8 @@ def _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, 
     with Runner(executor, workers if len(todo) > 1 else 1, scheduler) as runner:
         # split by split, so each split gets its own progress bar and rate
         for split in plans:
-            jobs = [(out_dir, t, plans[t.split][t.start:t.stop], attrs, roots) for t in todo if t.split == split]
+            jobs = [(out_dir, t, plans[t.split][t.start:t.stop], attrs, roots, cfg.corpus.fingerprint == "hash")
+                    for t in todo if t.split == split]
             total = sum(t.stop - t.start for t in tasks if t.split == split)
             if not total:
                 continue
@@ -275,7 +283,7 @@ def finalize(out_dir: str, corpus_dir: str | None = None, bank: str | None = Non
     roots = plan_roots(cfg, layout)
     tasks = plan_shard_tasks(cfg)
     shard_recipes = [plans[t.split][t.start:t.stop] for t in tasks]
-    stats = inputs_here(out_dir, shard_recipes, roots, "finalize")
+    stats = inputs_here(out_dir, shard_recipes, roots, "finalize", cfg.corpus.fingerprint == "hash")
     with DatasetLock(layout, exclusive=True, what="finalize it"):
         entries: dict[str, list] = {split: [] for split in plans}  # config order
         missing, bad = [], []

@@ -40,8 +40,11 @@ def synth(out_dir, seed, clips_per_type, force):
 def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, workers, quiet, force):
     """Decode, mix down and resample every clip a config uses, once, for fast scenes
     (kept beside the audio in .tsel-clips/, or in $TSEL_CLIP_CACHE). Scenes are the same
-    bytes with or without; they are just made faster."""
+    bytes with or without; they are just made faster. A prepared clip that no longer
+    matches its clip (or was changed) is made again. The full clip check of `tsel
+    generate` does this too (corpus.prepare_on_check)."""
     import os
+    from dataclasses import replace
 
     from tqdm import tqdm
 
@@ -54,7 +57,9 @@ def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, work
         refuse_inside(os.environ[CACHE_ENV], force, f"${CACHE_ENV} ", itself=True)
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
     folder = resolve_corpus_dir(cfg, Layout(".").demo_corpus)
-    catalog = build_catalog(cfg, folder, workers=worker_count(workers))
+    # the clips are prepared below, each counted; the check only says which are good
+    checking = replace(cfg, corpus=replace(cfg.corpus, prepare_on_check=False))
+    catalog = build_catalog(checking, folder, workers=worker_count(workers))
     with tqdm(total=sum(len(c) for c in catalog.clips.values()), unit="clip", desc="prepare", disable=quiet) as bar:
         counts = prepare_corpus(cfg, catalog.clips, worker_count(workers), progress=lambda: bar.update())
     click.echo(f"prepared {counts['made']} clips ({counts['kept']} already were) for {cfg.audio.fs} Hz, "

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-from ..choices import (Additive, AudioCoding, BadClipPolicy, Baffle, CheckLevel, CorpusFormat, HrtfInterpolation,
+from ..choices import (Additive, AudioCoding, BadClipPolicy, Baffle, CheckLevel, CorpusFormat, Fingerprint,
+                       HrtfInterpolation,
                        LevelModel, Motion, NoiseSpectrum, Pairing, PathKind, QueryType, Relation, RirMethod, Scenario,
                        SegmentRule, SensorLevel, SimilarityMeasure, values)
 from ..distributions import Dist
@@ -63,6 +64,16 @@ class CorpusConfig:
                                 "and silence in the `audio.duration` seconds a scene uses), `header`, `exists`, "
                                 "`none` (trust the manifest; a silent source is then an error at render time)",
                         choices=CheckLevel)
+    prepare_on_check: bool = option(True, "with `check = \"full\"`, write each clip's prepared form (`tsel corpus "
+                                          "prepare`) from the same decode, for every clip scenes would resample or "
+                                          "mix down: real 44.1 kHz stereo corpora then render as fast as prepared "
+                                          "ones (`tsel check` never writes them)", new=True)
+    fingerprint: str = option("stat", "what a shard's seal records of each clip and bank file it read, so "
+                                      "`--resume` renders again the shards whose inputs changed: `stat` (size and "
+                                      "modification time; a file rewritten with both kept is not noticed) or `hash` "
+                                      "(size and sha256 of the bytes, read again at every resume; catches that "
+                                      "too, and a file only touched or copied keeps its shards). Set it when "
+                                      "planning (docs/reliability.md)", choices=Fingerprint, new=True)
     min_duration: float = option(1.0, "shorter clips are bad clips", unit="s")
     max_channels: int = option(8, "a file with more channels is a bad clip (probably not a recording)",
                                unit="channels")
@@ -145,10 +156,14 @@ class SceneConfig:
     caption_similarity: float = option(0.5, "the ambiguity guard: an interferer is rejected if any of its captions is "
                                             "more similar than this to the query caption (`similarity`), so the "
                                             "caption picks out one source", unit="similarity 0-1")
-    similarity: str = option("words", "the caption similarity of the guard, pairing and same-kind distractors: "
-                                      "`words` (word-set Jaccard, function words ignored), `tfidf` (TF-IDF cosine over "
-                                      "the split's captions, word stems; recommended), `embeddings` (cosine of "
-                                      "`corpus.caption_embeddings`); docs/queries.md", choices=SimilarityMeasure, new=True)
+    similarity: str = option("lexicon", "the caption similarity of the guard, pairing and same-kind distractors: "
+                                        "`lexicon` (cosine of concept sets: words lemmatised, synonyms and broader "
+                                        "terms of sound events joined, so paraphrases meet), `words` (word-set "
+                                        "Jaccard, function words ignored; the default before), `tfidf` (TF-IDF "
+                                        "cosine over the split's captions, word stems), `embeddings` (cosine of "
+                                        "`corpus.caption_embeddings`), `none` (no guard: interferers drawn at "
+                                        "random, as the paper did); docs/queries.md", choices=SimilarityMeasure,
+                             new=True)
     query: Dist = dist("caption", "what the query is: `caption` (one caption of the target), `relational` (\"the "
                                   "loudest sound\"), `composite` (a caption plus a relation, with a same-kind "
                                   "distractor), or a `choose` of them with weights; relations are decided on the "

@@ -3,7 +3,8 @@
 Every shard is sealed by ``{split}/shard-NNNNN.seal.json``, written after its two files:
 
 - ``fingerprint``: what the shard was made from: its recipes as planned, and the size and
-  modification time of every clip and bank file they read (:func:`shard_fingerprint`);
+  modification time (``corpus.fingerprint = "hash"``: the size and sha256) of every clip
+  and bank file they read (:func:`shard_fingerprint`);
 - ``h5`` and ``json``: size, modification time (ns) and sha256 of each file.
 
 A shard is *complete* when its seal exists, holds the fingerprint the plan asks for now,
@@ -31,29 +32,47 @@ def sha256_file(path: str) -> str:
     return h.hexdigest()
 
 
-def input_stats(inputs) -> list:
+def input_stats(inputs, content: bool = False, hashes: dict | None = None) -> list:
     """[(name, size, mtime_ns)] of every file read from ``inputs`` ((name, path) pairs:
     the name a plan gives a file, and where it is here; a folder: every file in it,
     recursively, named below its name), sorted; a missing file is listed with size -1.
-    Names, not paths: a dataset and its corpus may move without their shards going stale."""
+    Names, not paths: a dataset and its corpus may move without their shards going stale.
+
+    ``content`` (``corpus.fingerprint = "hash"``): [(name, size, sha256)] instead, the
+    bytes read again, so a file rewritten with its old size and mtime is seen, and one
+    only touched or copied is not taken for changed. ``hashes``: {path: sha256} shared by
+    the calls of one resume check, so a file read by many shards is read once per check
+    (never across checks: rereading is what ``hash`` is for)."""
+    stat = _hashed if content else _stat
+    memo = {} if hashes is None else hashes
     out = set()
     for name, p in set(inputs):
         if os.path.isdir(p):
             for root, _, files in os.walk(p):
                 for f in files:
                     full = os.path.join(root, f)
-                    out.add(_stat(name + "/" + os.path.relpath(full, p).replace(os.sep, "/"), full))
+                    out.add(stat(name + "/" + os.path.relpath(full, p).replace(os.sep, "/"), full, memo))
         else:
-            out.add(_stat(name, p))
+            out.add(stat(name, p, memo))
     return sorted(out)
 
 
-def _stat(name: str, path: str) -> tuple:
+def _stat(name: str, path: str, memo=None) -> tuple:
     try:
         st = os.stat(path)
     except OSError:
         return (name, -1, 0)
     return (name, st.st_size, st.st_mtime_ns)
+
+
+def _hashed(name: str, path: str, memo: dict) -> tuple:
+    if path not in memo:
+        try:
+            memo[path] = (os.path.getsize(path), sha256_file(path))
+        except OSError:
+            memo[path] = (-1, "")
+    size, digest = memo[path]
+    return (name, size, digest) if size >= 0 else (name, -1, 0)
 
 
 def missing_inputs(stats) -> list[str]:
