@@ -164,7 +164,9 @@ class SeldAccumulator:
             # 2024 with distances; without any, the 2023 score (ER and LR in it)
             parts = [1 - f, le / 180.0, rde] if with_dist else [er, 1 - f, le / 180.0, 1 - lr]
             seld = float(np.nanmean(parts))
-            per[c] = {"f": f, "le": le, "lr": lr, "de": de, "rde": rde, "seld": seld, "n_ref": int(k.n_ref)}
+            # plain floats: the scores print and serialise as numbers, not np.float64(...)
+            per[c] = {"f": float(f), "le": float(le), "lr": float(lr), "de": float(de), "rde": float(rde),
+                      "seld": seld, "n_ref": int(k.n_ref)}
 
         def mean(key, skip_nan):
             v = np.asarray([p[key] for p in per.values()], dtype=np.float64)
