@@ -95,6 +95,13 @@ def test_every_scene_has_an_array_centred_view(ds, figure):
     polar = next(ax for ax in fig.axes if ax.name == "polar")
     assert polar.get_ylim()[0] == 0.0 and polar.get_ylim()[1] > np.nanmax(scene.distance)
     assert any("2: interferer (additive, no position)" in t for t in _texts(fig))
+    from tsel_data.picture import thumbnail_figure
+
+    thumb = thumbnail_figure(scene)
+    assert "+1 additive" in _texts(thumb)  # the sheet's picture says what it cannot draw
+    import matplotlib.pyplot as plt
+
+    plt.close(thumb)
 
 
 def test_query_relation_and_evidence_are_in_the_picture(ds, figure):

@@ -296,8 +296,9 @@ def scene_figure(scene):
     ax_head.text(0.0, 1.0, textwrap.fill(f"{scene.scene_id}: \u201c{scene.query}\u201d", 70), fontsize=13,
                  weight="bold", va="top", transform=ax_head.transAxes, gid="query")
     ax_head.text(0.0, 0.45, _header_text(scene), fontsize=9, va="top", transform=ax_head.transAxes, gid="query-facts")
-    ax_head.legend(handles=_legend_handles(scene), loc="upper right", fontsize=8.5, framealpha=0.9,
-                   borderaxespad=0.0)
+    handles = _legend_handles(scene)
+    ax_head.legend(handles=handles, loc="upper right", fontsize=8.5, framealpha=0.9, borderaxespad=0.0,
+                   ncol=1 if len(handles) <= 4 else 2)  # many sources: two columns, the header keeps its height
 
     # --- azimuth and elevation per frame ---------------------------------------------------
     _draw_labels(ax_az, scene, scene.azimuth, True)
