@@ -112,16 +112,12 @@ RSS_CHILD = r"""
 import json, os, sys
 sys.path.insert(0, {repo!r})
 from tsel_data.executors import prepare_worker
-from tsel_data.shards import load_plan, plan_shard_tasks, render_shard
-from tsel_data.plan import plan_roots
-from tsel_data.store.dataset import shard_attrs
-from tsel_data.store.layout import Layout
+from tsel_data.shards import open_plan, render_shard
 prepare_worker()
 out = {out!r}
-cfg, plans = load_plan(out)
-task = plan_shard_tasks(cfg)[0]
-attrs = shard_attrs(cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format, cfg.output.audio)
-render_shard(out, task, plans[task.split][task.start:task.stop], attrs, plan_roots(cfg, Layout(out)))
+plan = open_plan(out)
+task = plan.tasks[0]
+render_shard(out, task, plan.recipes([task])[0], plan.attrs, plan.roots)
 # VmHWM, not ru_maxrss: the latter keeps the high-water mark of the parent's memory forked
 # into this process before it exec'ed Python
 peak = [l for l in open("/proc/self/status") if l.startswith("VmHWM:")][0].split()[1]

@@ -135,7 +135,7 @@ def test_a_job_array_task_reads_only_its_shards_recipes(tmp_path, small_config):
     plan_dataset(cfg, out)
     path = Layout(out).plan_file("train")
     lines = open(path, encoding="utf-8").read().splitlines()
-    lines[5] = "{damaged"  # scene 5, in shard 2
+    lines[5] = "{damaged".ljust(len(lines[5]))  # scene 5, in shard 2; the same size: a task checks only sizes
     open(path, "w", encoding="utf-8").write("\n".join(lines) + "\n")
     assert render_shards(out, shards=range(0, 2), progress=False) == {"train": 4, "val": 0, "test": 0}
     with pytest.raises(DatasetError, match=r"train.jsonl:6: damaged scene recipe"):

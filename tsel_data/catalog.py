@@ -30,8 +30,8 @@ from .errors import AudioError, ConfigError, ManifestError, TselError
 from .executors import Runner, ordered_pool
 from .manifests import AUDIO_EXTENSIONS, detect_format, read_manifest, split_aliases
 from .progress import bar
+from .recipe import BUILTIN_DEMO
 
-BUILTIN_DEMO = "builtin:demo"
 MIN_CLIPS = 2  # a scene holds a target and at least one interferer, from different clips
 # Above this many scenes per usable clip (as target or interferer), a split mostly repeats
 # its clips (the paper's AudioCaps val split, 903 scenes of 495 clips, is at 3.6).

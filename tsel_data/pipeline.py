@@ -26,9 +26,10 @@ from .catalog import reuse_stop, write_bad_clips, write_missing_clips
 from .config import Config, Difference, config_differences
 from .errors import ConfigError, DatasetError, TselError
 from .config.receiver import array_poses
-from .plan import plan_roots, plan_split_json, prepare_views
-from .shards import (PlanPart, expected_fingerprint, finalize, load_plan, load_plan_part,  # noqa: F401 (the job's API)
-                     plan_config, plan_shard_tasks, render_shard, render_shards)
+from .plan import plan_split_json, prepare_views
+from .recipe import plan_roots
+from .shards import (Plan, expected_fingerprint, finalize, open_plan, plan_shard_tasks,  # noqa: F401 (the job's API)
+                     render_shard, render_shards)
 from .store.layout import Layout
 from .store.lock import DatasetLock
 from .store.plans import ROOT_KEYS, has_plan, plan_doc, portable_roots, read_plan_doc, read_plan_lines, stored_config
@@ -187,11 +188,16 @@ def estimate_bytes(cfg: Config) -> int:
 
 
 def check_space(cfg: Config, layout: Layout) -> None:
-    """Refuse, before any work, a dataset the disk cannot hold."""
-    need, free = estimate_bytes(cfg), shutil.disk_usage(layout.root).free
+    """Refuse, before any audio is written, a dataset whose shards still to render the
+    disk cannot hold (shards written so far count as written). A plan alone needs little:
+    the job-array flow plans on one machine and renders elsewhere, where each shard's
+    writer checks the space it needs."""
+    written = sum(os.path.getsize(os.path.join(d, n)) for d in map(layout.split_dir, cfg.splits)
+                  if os.path.isdir(d) for n in os.listdir(d) if n.startswith("shard-"))
+    need, free = max(0, estimate_bytes(cfg) - written), shutil.disk_usage(layout.root).free
     if need > free:
-        raise DatasetError(f"the dataset needs about {need / 1e9:.2f} GB but {layout.root} has {free / 1e9:.2f} GB "
-                           f"free; free space, choose another --out, or make fewer scenes")
+        raise DatasetError(f"the dataset needs about {need / 1e9:.2f} GB more but {layout.root} has "
+                           f"{free / 1e9:.2f} GB free; free space, choose another --out, or make fewer scenes")
 
 
 def _claim(out_dir: str, force: bool) -> Layout:
@@ -242,7 +248,6 @@ def _plan_locked(cfg: Config, layout: Layout, workers: int, resume: bool, grow: 
                 raise _refuse(out_dir, layout, diffs, grow)
             return _grow(cfg, layout, grown, workers, progress, report, allow_reuse)
     catalog, views = _catalog(cfg, layout, workers, progress, report, allow_reuse)
-    check_space(cfg, layout)  # after the corpus: what is wrong with the inputs is said first
     plans = {split: plan_split_json(cfg, split, views[split], workers, progress=progress) if sp.count else []
              for split, sp in cfg.splits.items()}
     _write_plan(cfg, layout, catalog, plans)
@@ -312,7 +317,7 @@ def _write_plan(cfg: Config, layout: Layout, catalog, plans: dict[str, list[str]
     for split, lines in plans.items():
         write_lines(layout.plan_file(split), lines)
     doc = plan_doc(portable_roots(cfg.to_dict(), layout.root), {s: len(c) for s, c in catalog.clips.items()},
-                   len(catalog.bad), missing)
+                   len(catalog.bad), missing, plans)
     write_json(layout.config_file, doc)
 
 
@@ -373,14 +378,15 @@ def generate(cfg: Config, out_dir: str, workers: int = 1, resume: bool = False, 
     with DatasetLock(layout, exclusive=True, what="generate it"):
         # clip-check bars only on a terminal: a log file would get thousands of bar updates
         _plan_locked(cfg, layout, workers, resume, grow, None if progress else False, report, allow_reuse)
+        plan = open_plan(out_dir)  # as stored: the stages render what the plan files say
+        check_space(plan.cfg, layout)  # after planning: what is wrong with the inputs is said first
         t1 = time.perf_counter()
-        rendered = render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
+        rendered = render_shards(plan, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
         t2 = time.perf_counter()
-        doc = finalize(out_dir)
-    plan = read_plan_doc(layout)
+        doc = finalize(plan)
     return {"out": out_dir, "splits": {s: v["scenes"] for s, v in doc["splits"].items()},
-            "rendered_now": rendered, "bad_clips": plan.get("bad_clips", 0),
-            "missing_clips": sum((plan.get("missing_clips") or {}).values()), "plan_seconds": t1 - t0,
+            "rendered_now": rendered, "bad_clips": plan.doc.get("bad_clips", 0),
+            "missing_clips": sum((plan.doc.get("missing_clips") or {}).values()), "plan_seconds": t1 - t0,
             "render_seconds": t2 - t1, "bytes": _dir_size(out_dir)}
 
 

@@ -14,9 +14,9 @@ import zlib
 
 import numpy as np
 
-from .banks.scenes import BUILTIN_DEMO_BANK, BankRequest, open_bank_cached, resolve_bank, split_rooms
+from .banks.scenes import BankRequest, open_bank_cached, resolve_bank, split_rooms
 from .captions import CaptionIndex, load_embeddings, max_similarity, tokens
-from .catalog import BUILTIN_DEMO, MIN_CLIPS, CatalogScan, build_catalog, resolve_corpus_dir
+from .catalog import MIN_CLIPS, CatalogScan, build_catalog, resolve_corpus_dir
 from .ambience import find_ambience
 from .choices import (LevelModel, NoiseSpectrum, Pairing, QueryType, Relation, Role, Scenario, SensorLevel,
                       SimilarityMeasure, Spatial)
@@ -26,7 +26,8 @@ from .config.receiver import array_pose, hrtf_problem
 from .errors import TselError
 from .executors import ordered_pool
 from .progress import bar
-from .recipe import BankRef, NoiseItem, QueryPlan, Roots, SceneRecipe, Source
+from .recipe import (BUILTIN_DEMO_BANK, BankRef, NoiseItem, QueryPlan, Roots, SceneRecipe, Source,
+                     plan_roots)
 from .placement import MAX_TRIES, place, place_bank
 from .receivers import receiver
 from .store.layout import Layout
@@ -94,18 +95,6 @@ def prepare_views(cfg: Config, home: Layout, workers: int = 1,
             if split in views:
                 views[split].caption_index(cfg.scene.similarity, cfg.corpus.caption_embeddings)
     return catalog, views
-
-
-def plan_roots(cfg: Config, home: Layout) -> Roots:
-    """Where the files of ``cfg``'s recipes are on this machine: the corpus folder, the
-    RIR bank (the built-in ones in ``home``, the dataset folder) and a binaural receiver's HRTF."""
-    corpus = home.demo_corpus if cfg.corpus.dir == BUILTIN_DEMO else cfg.corpus.dir
-    bank = home.demo_bank if cfg.room.bank == BUILTIN_DEMO_BANK else cfg.room.bank
-    hrtf, ambience = cfg.array.hrtf, cfg.noise.ambience
-    return Roots(os.path.abspath(os.path.expanduser(corpus)) if corpus else "",
-                 os.path.abspath(os.path.expanduser(bank)) if bank else "",
-                 os.path.abspath(os.path.expanduser(hrtf)) if hrtf else "",
-                 os.path.abspath(os.path.expanduser(ambience)) if ambience else "")
 
 
 def ambience_problems(cfg: Config) -> list[TselError]:

@@ -350,6 +350,11 @@ class SceneRecipe:
         return self
 
 
+# roots a config may name instead of a path: the inputs tsel-data makes itself
+BUILTIN_DEMO = "builtin:demo"
+BUILTIN_DEMO_BANK = "builtin:demo-bank"
+
+
 @dataclass(frozen=True)
 class Roots:
     """Where a recipe's relative paths point on this machine: ``corpus`` (the corpus
@@ -404,6 +409,18 @@ class Roots:
         out |= {(r.bank.path, self.bank_file(r.bank.path)) for r in recipes if r.bank}
         out |= {(a.hrtf, self.hrtf_file(a.hrtf)) for r in recipes for a in (r.array, *r.receivers) if a.hrtf}
         return sorted(out)
+
+
+def plan_roots(cfg, home) -> Roots:
+    """Where the files of ``cfg``'s recipes are on this machine: the corpus folder, the
+    RIR bank (the built-in ones in ``home``, the dataset folder's
+    :class:`~tsel_data.store.layout.Layout`), a binaural receiver's HRTF and the ambience
+    folder. ``cfg``: a :class:`~tsel_data.config.Config` (read, not imported: the render
+    job needs the roots, not the config layer's sampler)."""
+    corpus = home.demo_corpus if cfg.corpus.dir == BUILTIN_DEMO else cfg.corpus.dir
+    bank = home.demo_bank if cfg.room.bank == BUILTIN_DEMO_BANK else cfg.room.bank
+    return Roots(*(os.path.abspath(os.path.expanduser(p)) if p else ""
+                   for p in (corpus, bank, cfg.array.hrtf, cfg.noise.ambience)))
 
 
 def array_frame_position_at(recipe: SceneRecipe, s: Source, t) -> np.ndarray:

@@ -1,16 +1,18 @@
 """Reading a plan back, rendering its shards, finalizing the dataset.
 
-The second and third stages of :mod:`tsel_data.pipeline`: :func:`render_shards` renders a
-plan's shards (all, or a job-array task's range, reading only their recipes), skipping
-those whose seal verifies; :func:`finalize` checks every shard against the plan and
-writes ``dataset.json`` last.
+The second and third stages of :mod:`tsel_data.pipeline`. :func:`open_plan` reads a
+folder's plan once into a :class:`Plan` that goes from stage to stage;
+:func:`render_shards` renders its shards (all, or a job-array task's range, reading only
+their recipes), skipping those whose seal verifies; :func:`finalize` checks every shard
+against the plan and writes ``dataset.json`` last. Both refuse a plan edited since it was
+planned (the seal in ``plan/config.json``).
 """
 from __future__ import annotations
 
 import os
 import sys
+from dataclasses import dataclass, field
 
-import h5py
 from tqdm import tqdm
 
 from .atomic import write_json
@@ -18,22 +20,59 @@ from .config import Config, parse_config
 from .config.receiver import array_poses
 from .errors import AudioError, BankError, DatasetError
 from .executors import Runner
-from .h5str import as_strs
-from .plan import plan_roots
-from .recipe import Roots, SceneRecipe, recipe_from_line
+from .recipe import Roots, SceneRecipe, plan_roots, recipe_from_line
 from .render import render_scene
 from .store.dataset import ShardEntry, dataset_doc, shard_attrs
 from .store.integrity import input_stats, missing_inputs, read_seal, shard_fingerprint, shard_state
 from .store.layout import Layout
 from .store.lock import DatasetLock
-from .store.plans import (ShardTask, local_roots, portable_roots, read_plan_doc, read_plan_range, read_split_plan,
-                          shard_tasks)
+from .store.plans import (ShardTask, local_roots, portable_roots, read_plan_doc, read_plan_range,
+                          seal_problem, shard_tasks)
+from .store.reader import shard_scene_ids
 from .store.writer import ShardWriter
 
 
-def load_plan(out_dir: str, corpus_dir: str | None = None, bank: str | None = None
-              ) -> tuple[Config, dict[str, list[SceneRecipe]]]:
-    """The stored config and every split's recipes.
+@dataclass
+class Plan:
+    """A dataset's plan, opened once (:func:`open_plan`) and handed from stage to stage:
+    the folder, the config ``plan/config.json`` holds (roots as paths here), where the
+    inputs are, every shard of the plan, the shard attributes, and the stored plan
+    document. Recipes are read when asked for (:meth:`recipes`), once per split range."""
+
+    layout: Layout
+    cfg: Config
+    roots: Roots
+    tasks: list[ShardTask]
+    attrs: dict
+    doc: dict
+    _parts: dict[str, "PlanPart"] = field(default_factory=dict, repr=False)
+
+    @property
+    def out_dir(self) -> str:
+        return self.layout.root
+
+    def recipes(self, tasks: list[ShardTask]) -> list[list[SceneRecipe]]:
+        """Each task's recipes, read from the plan files the first time a range is asked for."""
+        need = [t for t in tasks if not self._has(t)]
+        if need:
+            for split, part in load_plan_part(self.layout, self.cfg, need + self._held(need)).items():
+                if part.recipes:
+                    self._parts[split] = part
+        return [self._parts[t.split][t.start:t.stop] for t in tasks]
+
+    def _has(self, t: ShardTask) -> bool:
+        part = self._parts.get(t.split)
+        return part is not None and part.offset <= t.start and t.stop <= part.offset + len(part.recipes)
+
+    def _held(self, need: list[ShardTask]) -> list[ShardTask]:
+        """Tasks whose recipes are held already in the splits of ``need``: read again with
+        them, so a split's held range only grows."""
+        splits = {t.split for t in need}
+        return [t for t in self.tasks if t.split in splits and self._has(t)]
+
+
+def open_plan(out_dir: str, corpus_dir: str | None = None, bank: str | None = None) -> Plan:
+    """Open a dataset folder's plan (``plan/config.json`` read and parsed once).
 
     Parameters
     ----------
@@ -42,29 +81,29 @@ def load_plan(out_dir: str, corpus_dir: str | None = None, bank: str | None = No
         Where the corpus and the RIR bank are now, when not where the plan says (a
         dataset or its inputs moved; a job array on another machine).
 
-    Returns
-    -------
-    (Config, dict)
-        The config ``plan/config.json`` holds (roots as paths here), and
-        {split: [SceneRecipe]} in plan order.
+    Raises
+    ------
+    DatasetError
+        No plan, a damaged one, or a config edited since it was planned (its seal).
     """
-    layout = Layout(out_dir)
-    cfg = plan_config(out_dir, corpus_dir, bank)
-    plans = {s: read_split_plan(layout, s) for s in cfg.splits}
-    for s, recipes in plans.items():
-        _check_count(layout, cfg, s, len(recipes))
-    return cfg, plans
-
-
-def plan_config(out_dir: str, corpus_dir: str | None = None, bank: str | None = None) -> Config:
-    """The config of a dataset's plan (roots as paths here, or as given: :func:`load_plan`)."""
-    layout = Layout(out_dir)
-    raw = local_roots(read_plan_doc(layout)["config"], layout.root)
+    layout = Layout(os.path.abspath(out_dir))  # dask workers may run elsewhere on a shared filesystem
+    doc = read_plan_doc(layout)
+    problem = seal_problem(layout, doc, splits=())
+    if problem:
+        raise DatasetError(f"{problem}; plan again into a new --out")
+    raw = local_roots(doc["config"], layout.root)
     if corpus_dir:
         raw["corpus"] = {**raw.get("corpus", {}), "dir": os.path.abspath(os.path.expanduser(corpus_dir))}
     if bank:
         raw["room"] = {**raw.get("room", {}), "bank": os.path.abspath(os.path.expanduser(bank))}
-    return parse_config(raw, where=layout.config_file)
+    cfg = parse_config(raw, where=layout.config_file)
+    return Plan(layout, cfg, plan_roots(cfg, layout), plan_shard_tasks(cfg), dataset_attrs(cfg), doc)
+
+
+def _opened(plan: Plan | str, corpus_dir: str | None, bank: str | None) -> Plan:
+    if isinstance(plan, Plan):
+        return plan
+    return open_plan(plan, corpus_dir, bank)
 
 
 def _check_count(layout: Layout, cfg: Config, split: str, have: int) -> None:
@@ -74,6 +113,14 @@ def _check_count(layout: Layout, cfg: Config, split: str, have: int) -> None:
         raise DatasetError(f"{layout.plan_file(split)} holds {have} scenes but {layout.config_file} asks "
                            f"{cfg.splits[split].count}; the plan was interrupted: run the same `tsel generate ... "
                            f"--grow` again")
+
+
+def _check_seal(plan: Plan, splits, deep: bool) -> None:
+    """Refuse plan files edited since they were planned: their recipes would be rendered
+    under the seal of the plan that was checked."""
+    problem = seal_problem(plan.layout, plan.doc, splits=splits, deep=deep)
+    if problem:
+        raise DatasetError(f"{problem}; plan again into a new --out, or put the plan back as it was")
 
 
 def plan_shard_tasks(cfg: Config) -> list[ShardTask]:
@@ -166,7 +213,7 @@ def _render_task(args) -> tuple[ShardTask, int, str]:
         return task, 0, str(e).replace(os.path.join(roots.corpus, ""), "") if roots.corpus else str(e)
 
 
-def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, progress: bool = True,
+def render_shards(plan: Plan | str, shards: range | None = None, workers: int = 1, progress: bool = True,
                   executor: str = "local", scheduler: str | None = None, corpus_dir: str | None = None,
                   bank: str | None = None) -> dict:
     """Render the plan's shards; complete shards are skipped.
@@ -177,8 +224,8 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
 
     Parameters
     ----------
-    out_dir : str
-        A planned dataset folder.
+    plan : Plan or str
+        An opened plan (:func:`open_plan`), or a planned dataset folder.
     shards : range, optional
         Indices into the plan's global shard list (split by split, in order); all if None.
     workers : int
@@ -190,7 +237,8 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
     scheduler : str, optional
         The Dask scheduler's address for ``dask``.
     corpus_dir, bank : str, optional
-        Where the corpus and the bank are, when not where the plan says (:func:`load_plan`).
+        Where the corpus and the bank are, when not where the plan says (:func:`open_plan`;
+        only with a folder).
 
     Returns
     -------
@@ -201,43 +249,42 @@ def render_shards(out_dir: str, shards: range | None = None, workers: int = 1, p
     ------
     DatasetError
         Shards that could not be rendered (bad clips or RIRs found only now: the first is
-        named; the others were rendered), or another process is planning the folder.
+        named; the others were rendered), a plan edited since it was planned, too little
+        disk for the shards to render, or another process is planning the folder.
     """
-    out_dir = os.path.abspath(out_dir)  # dask workers may run elsewhere on a shared filesystem
-    layout = Layout(out_dir)
-    cfg = plan_config(out_dir, corpus_dir, bank)  # a plan is written last by its planner: complete, or absent
-    roots = plan_roots(cfg, layout)
+    plan = _opened(plan, corpus_dir, bank)  # a plan is written last by its planner: complete, or absent
+    layout = plan.layout
     with DatasetLock(layout, exclusive=False, what="render it"):
-        tasks = plan_shard_tasks(cfg)
+        tasks = plan.tasks
         if shards is not None:
             if shards.stop > len(tasks):
                 raise DatasetError(f"shard range {shards.start}-{shards.stop - 1} is outside the plan's "
                                    f"{len(tasks)} shards (0-{len(tasks) - 1})")
             tasks = [tasks[i] for i in shards]
-        plans = load_plan_part(layout, cfg, tasks)  # only the recipes of these shards
-        recipes = [plans[t.split][t.start:t.stop] for t in tasks]
+        # a job-array task reads a few lines of a large plan: it checks sizes, the whole job hashes
+        _check_seal(plan, sorted({t.split for t in tasks}), deep=shards is None)
+        recipes = plan.recipes(tasks)  # only the recipes of these shards
         todo, redo = [], []
-        content = cfg.corpus.fingerprint == "hash"
-        for t, rs, stats in zip(tasks, recipes, inputs_here(out_dir, recipes, roots, "render", content)):
-            state, why = shard_state(layout, t.split, t.shard, expected_fingerprint(rs, roots, stats))
+        content = plan.cfg.corpus.fingerprint == "hash"
+        for t, rs, stats in zip(tasks, recipes, inputs_here(plan.out_dir, recipes, plan.roots, "render", content)):
+            state, why = shard_state(layout, t.split, t.shard, expected_fingerprint(rs, plan.roots, stats))
             if state != "complete":
-                todo.append(t)
+                todo.append((t, rs))
                 if state in ("stale", "damaged"):
                     redo.append(f"{t.files[0]} ({why})")
         if redo:
             print(f"rendering {len(redo)} shard(s) again that do not verify, e.g. {redo[0]}", file=sys.stderr)
-        return _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler, roots)
+        return _render_todo(plan, tasks, todo, workers, progress, executor, scheduler)
 
 
-def _render_todo(out_dir, cfg, plans, tasks, todo, workers, progress, executor, scheduler, roots) -> dict:
-    attrs = dataset_attrs(cfg)
-    done: dict[str, int] = {s: 0 for s in plans}
+def _render_todo(plan: Plan, tasks, todo, workers, progress, executor, scheduler) -> dict:
+    done: dict[str, int] = {s: 0 for s in plan.cfg.splits}
     failed: list[str] = []
     with Runner(executor, workers if len(todo) > 1 else 1, scheduler) as runner:
         # split by split, so each split gets its own progress bar and rate
-        for split in plans:
-            jobs = [(out_dir, t, plans[t.split][t.start:t.stop], attrs, roots, cfg.corpus.fingerprint == "hash")
-                    for t in todo if t.split == split]
+        for split in plan.cfg.splits:
+            jobs = [(plan.out_dir, t, rs, plan.attrs, plan.roots, plan.cfg.corpus.fingerprint == "hash")
+                    for t, rs in todo if t.split == split]
             total = sum(t.stop - t.start for t in tasks if t.split == split)
             if not total:
                 continue
@@ -262,33 +309,37 @@ def _bar(split: str, total: int, initial: int, progress: bool):
 # --- finalize ----------------------------------------------------------------------------------
 
 
-def finalize(out_dir: str, corpus_dir: str | None = None, bank: str | None = None) -> dict:
+def finalize(plan: Plan | str, corpus_dir: str | None = None, bank: str | None = None) -> dict:
     """Check every shard against the plan and write ``dataset.json`` (atomically, last).
 
+    ``plan``: an opened plan (:func:`open_plan`) or a planned dataset folder;
     ``corpus_dir``, ``bank``: where the inputs are, when not where the plan says.
 
     Returns
     -------
     dict
-        The ``dataset.json`` document.
+        The ``dataset.json`` document (it carries the plan's seal, so ``tsel check``
+        notices a plan or config edited afterwards).
 
     Raises
     ------
     DatasetError
         A shard is missing, does not verify (another plan, changed inputs, damaged
-        files), or holds other scenes than the plan puts there.
+        files), or holds other scenes than the plan puts there; the plan was edited.
     """
-    layout = Layout(out_dir)
-    cfg, plans = load_plan(out_dir, corpus_dir, bank)
-    roots = plan_roots(cfg, layout)
-    tasks = plan_shard_tasks(cfg)
-    shard_recipes = [plans[t.split][t.start:t.stop] for t in tasks]
-    stats = inputs_here(out_dir, shard_recipes, roots, "finalize", cfg.corpus.fingerprint == "hash")
+    plan = _opened(plan, corpus_dir, bank)
+    layout, out_dir = plan.layout, plan.out_dir
+    _check_seal(plan, list(plan.cfg.splits), deep=True)
+    shard_recipes = plan.recipes(plan.tasks)
+    for split, sp in plan.cfg.splits.items():  # a plan file longer than the config's count
+        if read_plan_range(layout, split, sp.count, sp.count + 1):
+            _check_count(layout, plan.cfg, split, sp.count + 1)
+    stats = inputs_here(out_dir, shard_recipes, plan.roots, "finalize", plan.cfg.corpus.fingerprint == "hash")
     with DatasetLock(layout, exclusive=True, what="finalize it"):
-        entries: dict[str, list] = {split: [] for split in plans}  # config order
+        entries: dict[str, list] = {split: [] for split in plan.cfg.splits}  # config order
         missing, bad = [], []
-        for task, recipes, st in zip(tasks, shard_recipes, stats):
-            state, why = shard_state(layout, task.split, task.shard, expected_fingerprint(recipes, roots, st),
+        for task, recipes, st in zip(plan.tasks, shard_recipes, stats):
+            state, why = shard_state(layout, task.split, task.shard, expected_fingerprint(recipes, plan.roots, st),
                                      deep=True)
             if state == "missing":
                 missing.append(task.files[0])
@@ -297,9 +348,8 @@ def finalize(out_dir: str, corpus_dir: str | None = None, bank: str | None = Non
                 bad.append(f"{task.files[0]}: {why}")
                 continue
             want = [r.scene_id for r in recipes]
-            with h5py.File(layout.path(task.files[0]), "r") as h:
-                got = as_strs(h["scene_id"][()])
-            if got != want:  # a sealed shard of this plan holds its scenes; this guards the seal itself
+            if shard_scene_ids(layout.path(task.files[0])) != want:  # a sealed shard of this plan holds its
+                # scenes; this guards the seal itself
                 bad.append(f"{task.files[0]}: holds scenes other than the planned {want[0]}..{want[-1]}")
                 continue
             seal = read_seal(layout, task.split, task.shard)
@@ -310,8 +360,9 @@ def finalize(out_dir: str, corpus_dir: str | None = None, bank: str | None = Non
         if missing:
             raise DatasetError(f"{len(missing)} shard(s) not rendered yet, e.g. {missing[0]}; "
                                f"run `tsel render {out_dir}` (or `tsel generate ... --resume`) first")
-        doc = dataset_doc(portable_roots(cfg.to_dict(), out_dir), cfg.seed,
-                          dataset_attrs(cfg), entries)
+        doc = dataset_doc(portable_roots(plan.cfg.to_dict(), out_dir), plan.cfg.seed, plan.attrs, entries)
+        if "seal" in plan.doc:
+            doc["plan_seal"] = plan.doc["seal"]
         write_json(layout.dataset_file, doc)
         return doc
 

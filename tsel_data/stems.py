@@ -21,10 +21,9 @@ import numpy as np
 
 from .audio import save_wav
 from .errors import DatasetError
-from .plan import plan_roots
 from .recipe import Roots, SceneRecipe
 from .render import mix_parts
-from .shards import plan_config
+from .shards import open_plan
 from .stereo import stereo_preview
 from .store.integrity import input_stats, missing_inputs
 from .store.layout import Layout
@@ -57,7 +56,7 @@ def scene_recipe(root: str, split: str, index: int, scene_id: str | None = None,
 
 def dataset_roots(root: str, corpus_dir: str | None = None, bank: str | None = None) -> Roots:
     """Where the files of a dataset's recipes are: as its plan says, or as given."""
-    return plan_roots(plan_config(root, corpus_dir, bank), Layout(root))
+    return open_plan(root, corpus_dir, bank).roots
 
 
 def render_stems(recipe: SceneRecipe, mixture: np.ndarray | None = None,

@@ -80,15 +80,17 @@ def _report(line: str) -> None:
 def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, grow, force, manifest,
              allow_reuse):
     """Check the corpus and write scene recipes only (plan/{split}.jsonl)."""
-    from ..pipeline import plan_dataset
+    from ..pipeline import estimate_bytes, plan_dataset
     from ..store.plans import shard_tasks
 
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides, manifest=manifest)
     counts = plan_dataset(cfg, out_dir, workers=worker_count(workers), grow=grow, force=force, report=_report,
                           allow_reuse=allow_reuse)
     n_shards = len(shard_tasks(counts, cfg.output.shard_size))
+    # the disk is checked by the commands that write audio: rendering may happen elsewhere
     click.echo("planned " + ", ".join(f"{k} {v}" for k, v in counts.items()) + f" scenes in {n_shards} shards "
-               f"(0-{n_shards - 1}) in {out_dir}/plan")
+               f"(0-{n_shards - 1}) in {out_dir}/plan; rendered, they take about "
+               f"{estimate_bytes(cfg) / 1e9:.2f} GB")
 
 
 def _parse_range(text: str | None):
@@ -112,7 +114,7 @@ def _parse_range(text: str | None):
 @roots_options
 def render_cmd(out_dir, shards, workers, quiet, executor, scheduler, corpus_dir, bank):
     """Render planned shards (skips complete ones), for job arrays."""
-    from ..pipeline import render_shards
+    from ..shards import render_shards  # not the pipeline: a render job does not import the sampler
 
     done = render_shards(out_dir, _parse_range(shards), workers=worker_count(workers), progress=not quiet,
                          executor=executor, scheduler=scheduler, corpus_dir=corpus_dir, bank=bank)
@@ -124,7 +126,7 @@ def render_cmd(out_dir, shards, workers, quiet, executor, scheduler, corpus_dir,
 @roots_options
 def finalize_cmd(out_dir, corpus_dir, bank):
     """Check every shard against the plan and write dataset.json."""
-    from ..pipeline import finalize
+    from ..shards import finalize
 
     doc = finalize(out_dir, corpus_dir, bank)
     click.echo("dataset.json written: " + ", ".join(f"{k} {v['scenes']}" for k, v in doc["splits"].items()))

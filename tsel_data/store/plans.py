@@ -7,6 +7,7 @@ pipeline's job (the store does not depend on the config layer).
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from dataclasses import dataclass
@@ -50,14 +51,64 @@ def shard_sealed(layout: Layout, task: ShardTask) -> bool:
                                            layout.seal_file(task.split, task.shard)))
 
 
-def plan_doc(config: dict, clips: dict[str, int], bad_clips: int, missing_clips: dict[str, int] | None = None) -> dict:
+def plan_doc(config: dict, clips: dict[str, int], bad_clips: int, missing_clips: dict[str, int] | None = None,
+             plans: dict[str, list[str]] | None = None) -> dict:
     """The document of ``plan/config.json``: tool, version, the resolved config as plain
     data, usable clips per split, the number of bad clips and, when audio files are
-    missing, how many per split."""
+    missing, how many per split; and the plan's seal (:func:`plan_seal`) of the recipe
+    lines ``plans`` ({split: lines}) written beside it."""
     doc = {"tool": "tsel-data", "version": __version__, "config": config, "clips": clips, "bad_clips": bad_clips}
     if missing_clips:
         doc["missing_clips"] = missing_clips
+    if plans is not None:
+        doc["seal"] = plan_seal(config, plans)
     return doc
+
+
+def plan_seal(config: dict, plans: dict[str, list[str]]) -> dict:
+    """What the plan was when it was written: the digest of its config (roots left out: a
+    dataset and its inputs may move) and the size and sha256 of each plan file."""
+    files = {}
+    for split, lines in plans.items():
+        data = "".join(line + "\n" for line in lines).encode("utf-8")
+        files[split] = {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    return {"config_sha256": config_digest(config), "files": files}
+
+
+def config_digest(config: dict) -> str:
+    """sha256 of a config (plain data) without its roots (:data:`ROOT_KEYS`)."""
+    rootless = _map_roots(config, lambda v: "")
+    return hashlib.sha256(json.dumps(rootless, sort_keys=True, separators=(",", ":")).encode("utf-8")).hexdigest()
+
+
+def _file_digest(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def seal_problem(layout: Layout, doc: dict, splits=None, deep: bool = True) -> str:
+    """What no longer matches the plan's seal in ``plan/config.json`` (``doc``): its
+    config, or a plan file (of ``splits``, default all; ``deep``: by sha256, else by size
+    only, for a job-array task that reads a few lines of a large plan). "" when all
+    match, or for a plan written before plans were sealed."""
+    seal = doc.get("seal")
+    if not isinstance(seal, dict):
+        return ""
+    if seal.get("config_sha256") != config_digest(doc["config"]):
+        return f"{layout.config_file}: its config was edited after planning (it no longer matches its seal)"
+    files = seal.get("files") or {}
+    for split in files if splits is None else splits:
+        want, path = files.get(split) or {}, layout.plan_file(split)
+        try:
+            size = os.path.getsize(path)
+            if size != want.get("bytes") or (deep and _file_digest(path) != want.get("sha256")):
+                return f"{path} was edited after planning (it no longer matches the seal in {CONFIG_FILE})"
+        except OSError as e:
+            return f"{path}: cannot read ({e.strerror or e})"
+    return ""
 
 
 # config keys that name files outside the dataset (the roots of its relative paths)

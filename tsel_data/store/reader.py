@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 
 from ..errors import DatasetError
-from ..h5str import as_str
+from ..h5str import as_str, as_strs
 from ..choices import AudioCoding
 from .codings import coding_of, decode
 from .dataset import DatasetDoc, load_dataset_doc
@@ -357,6 +357,12 @@ class SceneDataset:
 
     def __repr__(self) -> str:
         return f"SceneDataset({self.root!r}, split={self.split!r}, scenes={len(self)}, format={self.format!r})"
+
+
+def shard_scene_ids(path: str) -> list[str]:
+    """The scene ids an HDF5 shard holds, in order (without opening its audio)."""
+    with h5py.File(path, "r") as h:
+        return as_strs(h["scene_id"][()])
 
 
 def load_manifest(root: str) -> dict:

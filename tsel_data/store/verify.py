@@ -23,7 +23,7 @@ from ..report import CheckReport
 from .codings import coding_of, decode
 from .dataset import load_dataset_doc
 from .layout import SEAL_SUFFIX, Layout
-from .plans import has_plan, plan_ids, read_plan_doc, shard_sealed, shard_tasks
+from .plans import config_digest, has_plan, plan_ids, read_plan_doc, seal_problem, shard_sealed, shard_tasks
 from .records import LABEL_ATOL, LABEL_KEYS, SourceRecord
 from .integrity import sha256_file
 
@@ -65,6 +65,8 @@ def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckRe
         rep.error(DatasetError(f"{layout.dataset_file}: its config is incomplete ({type(e).__name__}: {e}); "
                                f"rerun `tsel finalize {out_dir}`"))
         return rep
+    for problem in _seal_problems(layout, doc.raw):
+        rep.error(DatasetError(problem))
     config_splits = doc.config.get("splits") or {}
     jobs = []
     rep.facts["splits"] = {}
@@ -116,6 +118,32 @@ def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckRe
                 rep.warnings.append(f"{rel}: not listed in dataset.json; delete it or rerun `tsel finalize {out_dir}`")
     rep.facts["bytes"] = total_bytes
     return rep
+
+
+def _seal_problems(layout: Layout, raw: dict) -> list[str]:
+    """Whether ``dataset.json`` and the plan are still what finalize sealed: its config
+    and seed, the plan's config and every plan file. A dataset finalized before plans
+    were sealed has nothing to compare."""
+    seal = raw.get("plan_seal")
+    if not isinstance(seal, dict):
+        return []
+    fix = "the dataset was edited after it was made: make it again, or put the files back as they were"
+    problems = []
+    config = raw.get("config") or {}
+    if config_digest(config) != seal.get("config_sha256") or raw.get("seed") != config.get("seed"):
+        problems.append(f"{layout.dataset_file}: its config or seed no longer matches the plan it was made from; "
+                        f"{fix}")
+    try:
+        plan = read_plan_doc(layout)
+    except TselError as e:
+        return problems + [str(e)]
+    if plan.get("seal") != seal:
+        problems.append(f"{layout.config_file}: another plan than the one {layout.dataset_file} was made from; {fix}")
+    else:
+        problem = seal_problem(layout, plan)
+        if problem:
+            problems.append(f"{problem}; {fix}")
+    return problems
 
 
 def _report_unfinished(layout: Layout, rep: CheckReport) -> None:
