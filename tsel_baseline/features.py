@@ -229,7 +229,3 @@ def scene_features(scene, cfg: FeatureConfig = FeatureConfig()) -> dict:
             raise ValueError(f"intensity vectors need 4 FOA channels {FOA_CHANNELS}, got {scene.audio.shape[0]}")
         out["iv"] = intensity_features(spec, fb, pool)
     return out
-
-
-def n_pairs(n_channels: int) -> int:
-    return len(mic_pairs(n_channels))

@@ -379,8 +379,3 @@ def _drop_unset(section, d: dict) -> None:
     for f in fields(section):
         if f.metadata.get("new") and getattr(section, f.name) == getattr(default, f.name):
             d.pop(f.name, None)
-
-
-def field_specs(cls) -> list:
-    """The declared fields of a section class (or Config's top-level plain fields)."""
-    return [f for f in fields(cls) if f.metadata.get("doc")]
