@@ -224,12 +224,13 @@ def _draw_room(ax, scene, tracks, centre, yaw, dims) -> None:
     ax.set_title("room from above", fontsize=10)
 
 
-def _legend_handles(scene):
+def _legend_handles(scene, room: bool):
     from matplotlib.lines import Line2D
 
     rec = scene.record
     handles = [Line2D([], [], ls="", marker="s", color="k", ms=6,
-                      label=f"array ({scene.format}); arrow in the room, up in the array frame = its front")]
+                      label=f"array ({scene.format}); " + ("arrow in the room, up in the array frame = its front" if room
+                                                           else "its front up (where it stood is not known)"))]
     for s in range(scene.n_sources):
         info = rec.sources[s]
         marker, size = _marker(s, False)
@@ -275,7 +276,7 @@ def scene_figure(scene):
     # measured-bank scenes may know their room's size but not where the array stood: array frame only
     dims = rec.room.dims if rec.array.centre is not None else None
     fig = plt.figure(figsize=(14, 10.5))
-    outer = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.45), height_ratios=(0.16, 1.0), hspace=0.08, wspace=0.16)
+    outer = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.45), height_ratios=(0.16, 1.0), hspace=0.08, wspace=0.22)
     ax_head = fig.add_subplot(outer[0, :])
     ax_head.axis("off")
     if dims:
@@ -296,7 +297,7 @@ def scene_figure(scene):
     ax_head.text(0.0, 1.0, textwrap.fill(f"{scene.scene_id}: \u201c{scene.query}\u201d", 70), fontsize=13,
                  weight="bold", va="top", transform=ax_head.transAxes, gid="query")
     ax_head.text(0.0, 0.45, _header_text(scene), fontsize=9, va="top", transform=ax_head.transAxes, gid="query-facts")
-    handles = _legend_handles(scene)
+    handles = _legend_handles(scene, bool(dims))
     ax_head.legend(handles=handles, loc="upper right", fontsize=8.5, framealpha=0.9, borderaxespad=0.0,
                    ncol=1 if len(handles) <= 4 else 2)  # many sources: two columns, the header keeps its height
 
