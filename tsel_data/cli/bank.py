@@ -5,7 +5,7 @@ import json
 
 import click
 
-from ..banks import BankError, open_bank
+from ..errors import BankError
 from ..choices import RirMethod, values
 from ..receivers import ALIASES, NAMES, RECEIVERS
 from .options import force_option
@@ -45,7 +45,8 @@ def import_group():
 @force_option
 def import_tau(src, out, rooms, fmt, force):
     """Import the TAU-SRIR DB as distributed (reads each trajectory once, never a whole file)."""
-    from ..store.outputs import claim_output  # as every command: its library module when it runs
+    from ..banks import open_bank  # as every command: its library module when it runs
+    from ..store.outputs import claim_output
 
     with claim_output(out, force, OWNER), open_bank(src, kind="tau", format=fmt) as b:
         path = _write_with_bar(out, b, _rooms(rooms), {"importer": "tsel bank import tau"})
@@ -91,6 +92,8 @@ def import_sofa(files, out, fmt, rooms, grouping, force):
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def info(path, fmt, show_traj, as_json):
     """Summarise a bank: rooms, format, RIR count, trajectories, azimuth/elevation coverage."""
+    from ..banks import open_bank  # as every command: its library module when it runs
+
     with open_bank(path, format=fmt) as b:
         s = b.summary(trajectories=show_traj)
     if as_json:
