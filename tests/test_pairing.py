@@ -186,7 +186,13 @@ def test_old_records_read_as_captions_with_random_pairing(small_config, tmp_path
                                              {"captions": ["A dog barks loudly"]}]})
     assert (rec.query_type, rec.pairing, rec.extended) == ("caption", "random", False)
     assert "query_type" not in rec.to_json()
-    assert rec.query_pool(0.5) == ["Barking of a dog"]  # today's word guard
+    # the word guard passes "Barking of a dog" (Jaccard 1/3 to "A dog barks loudly"), the
+    # lexicon guard sees the same sound: no other caption is answerable, the query stays
+    assert rec.query_pool(0.5) == ["A dog barks"]
+    rec = SceneRecord.from_json({"scene_id": "x", "query": "A dog barks",
+                                 "sources": [{"captions": ["A dog barks", "A puppy yaps", "Pigeons coo"]},
+                                             {"captions": ["A car passes"]}]})
+    assert rec.query_pool(0.5) == ["A dog barks", "A puppy yaps", "Pigeons coo"]
 
 
 @pytest.mark.parametrize("overrides, message", [

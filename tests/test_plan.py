@@ -4,7 +4,7 @@ import time
 import numpy as np
 import pytest
 
-from tsel_data.captions import max_similarity, tokens
+from tsel_data.captions import caption_sets, max_similarity
 from tsel_data.catalog import build_catalog
 from tsel_data.geometry import cart_to_sph, room_to_array, azimuth_difference
 from datasetfixture import SHARED_AUDIOCAPS as AUDIOCAPS, plan_recipes
@@ -49,7 +49,9 @@ def test_recipes_respect_the_config(planned):
         assert t.role == "target" and i.role == "interferer"
         assert r.query in by_id[t.clip_id].captions
         assert t.clip_id != i.clip_id
-        assert max_similarity(tokens(r.query), [tokens(c) for c in i.captions]) <= cfg.scene.caption_similarity
+        m = cfg.scene.similarity
+        assert max_similarity(caption_sets(r.query, m), [caption_sets(c, m) for c in i.captions], m) <= \
+            cfg.scene.caption_similarity
         lo, hi = cfg.scene.tir_db.bounds
         assert lo <= i.tir_db <= hi
         dims = np.array(r.room.dims)

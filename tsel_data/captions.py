@@ -4,14 +4,19 @@ One measure serves the ambiguity guard (``scene.caption_similarity``), pairing
 (``scene.pairing``: hard and easy interferers) and same-kind distractors
 (``scene.same_kind_similarity``); ``scene.similarity`` picks it:
 
-- ``words`` (the default, so datasets made before stay byte-identical): word-set
-  Jaccard after lower-casing and dropping function words. Crude, fast, transparent.
+- ``lexicon`` (the default): cosine of the captions' concept sets
+  (:func:`tsel_data.lexicon.concepts`: content words lemmatised and mapped to their
+  synonym groups and broader terms), ``|A ∩ B| / sqrt(|A| |B|)``. Paraphrases meet:
+  "A man is speaking" ~ "A male voice narrates" is 1.0 (Jaccard of the words 0.0).
+- ``words`` (the default before 0.x; datasets planned with it are rebuilt with it):
+  word-set Jaccard after lower-casing and dropping function words. Crude, fast, transparent.
 - ``tfidf``: cosine of TF-IDF vectors over the split's captions: content words cut to a
   crude stem ("barks", "barking" -> "bark"), binary term frequency (captions are short),
   smooth idf ``log((1 + N) / (1 + df)) + 1``. Rare shared words count more than common
   ones, and inflections match: "A dog barks" ~ "Barking of a dog" is 1.0 (Jaccard 0.33).
 - ``embeddings``: cosine of vectors made elsewhere (CLAP, MiniLM: ``tsel corpus embed``),
   read from ``corpus.caption_embeddings`` (an ``.npz`` with ``captions`` and ``vectors``).
+- ``none``: no guard, every similarity 0: interferers drawn at random, as the paper did.
 
 :class:`CaptionIndex` holds one split's captions under one measure, precomputed once,
 and answers similarities for many clips at once and draws a clip whose similarity to a
@@ -24,6 +29,7 @@ import re
 import numpy as np
 
 from .errors import ConfigError
+from .lexicon import concepts, weight
 
 _WORD = re.compile(r"[a-z0-9']+")
 STOPWORDS = frozenset(
@@ -32,7 +38,7 @@ STOPWORDS = frozenset(
     "into onto over under up down out off some someone something very far nearby near distance "
     "background foreground loud loudly quiet quietly softly".split()
 )
-MEASURES = ("words", "tfidf", "embeddings")
+MEASURES = ("lexicon", "words", "tfidf", "embeddings", "none")
 
 
 def tokens(caption: str) -> frozenset[str]:
@@ -61,18 +67,45 @@ def jaccard(a: frozenset, b: frozenset) -> float:
     return len(a & b) / len(a | b)
 
 
-def max_similarity(query: frozenset, others) -> float:
-    """Highest similarity between a query's tokens and any of ``others`` (token sets)."""
-    return max((jaccard(query, o) for o in others), default=0.0)
+def concept_similarity(a: frozenset, b: frozenset) -> float:
+    """The ``lexicon`` similarity of two concept sets: the square root of the cosine of
+    their weighted indicator vectors (:func:`tsel_data.lexicon.weight`), so 1.0 for the
+    same concepts, 0.71 for two captions sharing one of their two events, 0.5 for one of
+    four; 0.0 when one is empty (a caption of fillers names no sound)."""
+    if not a or not b:
+        return 0.0
+    dot = sum(weight(c) ** 2 for c in a & b)
+    return float(np.sqrt(dot / np.sqrt(sum(weight(c) ** 2 for c in a) * sum(weight(c) ** 2 for c in b))))
+
+
+def caption_sets(caption: str, measure: str) -> frozenset[str]:
+    """What a set measure compares of a caption: its words, or its concepts."""
+    return concepts(caption) if measure == "lexicon" else tokens(caption)
+
+
+def set_similarity(a: frozenset, b: frozenset, measure: str = "words") -> float:
+    """The similarity of two :func:`caption_sets` under ``measure`` (``none``: 0)."""
+    if measure == "none":
+        return 0.0
+    return concept_similarity(a, b) if measure == "lexicon" else jaccard(a, b)
+
+
+def max_similarity(query: frozenset, others, measure: str = "words") -> float:
+    """Highest similarity between a query's sets and any of ``others`` (sets of one measure)."""
+    return max((set_similarity(query, o, measure) for o in others), default=0.0)
 
 
 def answerable_queries(target_captions, other_captions, max_sim: float) -> list[str]:
     """The target's captions that describe it and not the other sources: those whose
-    word-set similarity to every caption of every other source is at most ``max_sim``
-    (the guard of datasets planned with ``scene.similarity = "words"``; datasets planned
-    otherwise list their answerable queries in each record, ``query_alternatives``)."""
-    others = [tokens(c) for caps in other_captions for c in caps]
-    return [c for c in target_captions if max_similarity(tokens(c), others) <= max_sim]
+    similarity to every caption of every other source is at most ``max_sim`` under both
+    the word-set and the lexicon guard (records of datasets planned with either;
+    datasets planned otherwise list their answerable queries in each record,
+    ``query_alternatives``)."""
+    out = []
+    for measure in ("words", "lexicon"):
+        others = [caption_sets(c, measure) for caps in other_captions for c in caps]
+        out.append({c for c in target_captions if max_similarity(caption_sets(c, measure), others, measure) <= max_sim})
+    return [c for c in target_captions if c in out[0] and c in out[1]]
 
 
 def load_embeddings(path: str) -> dict[str, np.ndarray]:
@@ -106,14 +139,14 @@ class CaptionIndex:
     captions : list of tuple of str
         Each clip's captions, in clip order.
     measure : str
-        ``words``, ``tfidf`` or ``embeddings``.
+        One of :data:`MEASURES`.
     vectors : dict, optional
         caption -> unit vector (``embeddings``; :func:`load_embeddings`).
     where : str
         Names the vectors' file in messages.
     """
 
-    def __init__(self, captions, measure: str = "words", vectors: dict | None = None,
+    def __init__(self, captions, measure: str = "lexicon", vectors: dict | None = None,
                  where: str = "corpus.caption_embeddings"):
         if measure not in MEASURES:
             raise ValueError(f"unknown caption similarity {measure!r}; expected one of {MEASURES}")
@@ -132,7 +165,8 @@ class CaptionIndex:
                                   f"`tsel corpus embed`")
             self.vectors = np.stack([vectors[c] for c in flat]).astype(np.float32) if flat else np.zeros((0, 1))
             return
-        sets = [tokens(c) if measure == "words" else stems(c) for c in flat]
+        sets = [frozenset() if measure == "none" else stems(c) if measure == "tfidf" else caption_sets(c, measure)
+                for c in flat]
         vocab: dict[str, int] = {}
         for s in sets:
             for w in sorted(s):
@@ -145,8 +179,10 @@ class CaptionIndex:
         self.ids, self.n_terms = ids, (ids < v).sum(axis=1).astype(np.int32)
         self.vocab_size = v
         df = np.bincount(ids[ids < v], minlength=v).astype(np.float64)
-        if measure == "tfidf":
-            idf = np.append(np.log((1.0 + len(flat)) / (1.0 + df)) + 1.0, 0.0)
+        if measure in ("tfidf", "lexicon"):  # lexicon: the concepts' own weights, no idf
+            terms = sorted(vocab, key=vocab.get)
+            own = np.array([weight(t) for t in terms]) if measure == "lexicon" else None
+            idf = np.append(np.log((1.0 + len(flat)) / (1.0 + df)) + 1.0 if own is None else own, 0.0)
             w = idf[ids]
             norms = np.sqrt((w ** 2).sum(axis=1, keepdims=True))
             self.weights = (w / np.where(norms > 0, norms, 1.0)).astype(np.float64)
@@ -179,9 +215,13 @@ class CaptionIndex:
         q = self._query(cap) if q is None else q
         if self.measure == "embeddings":
             return (self.vectors[caps] @ q).astype(np.float64)
+        if self.measure == "none":
+            return np.zeros(len(caps))
         rows = self.ids[caps]
         if self.measure == "tfidf":
             return (q[rows] * self.weights[caps]).sum(axis=1)
+        if self.measure == "lexicon":  # as concept_similarity
+            return np.sqrt(np.maximum((q[rows] * self.weights[caps]).sum(axis=1), 0.0))
         inter = (q[rows] > 0).sum(axis=1)
         union = self.n_terms[cap] + self.n_terms[caps] - inter
         # both empty: Jaccard 1.0, as jaccard() says
@@ -205,14 +245,18 @@ class CaptionIndex:
         """Query terms of which a caption with similarity >= ``lo`` must share at least one
         (prefix filtering): terms whose weight cannot reach ``lo`` on their own together
         are dropped. TF-IDF: cos <= sqrt(sum of the shared terms' squared query weights),
-        so the lightest terms whose squares sum below lo² are dropped. Jaccard: a caption
+        so the lightest terms whose squares sum below lo² are dropped (lexicon: the same
+        bound on the cosine, lo⁴, the most common terms dropped first). Jaccard: a caption
         sharing m of the query's n terms has J <= m / n, so it shares at least ceil(lo·n)
         of them; the ceil(lo·n) - 1 most common terms are dropped."""
         row = self.ids[cap]
         terms = row[row < self.vocab_size].astype(np.int64)
-        if self.measure == "tfidf":
+        if self.measure == "lexicon":
+            lo = lo * lo  # the bound is on the cosine, lexicon is its square root
+        if self.measure in ("tfidf", "lexicon"):
             w = self.weights[cap][: len(terms)]
-            order = np.argsort(w, kind="stable")
+            lens = self.ptr[terms + 1] - self.ptr[terms]
+            order = np.argsort(w if self.measure == "tfidf" else -lens, kind="stable")
             drop = int(np.searchsorted(np.cumsum(w[order] ** 2), lo * lo - 1e-12, side="left"))
             return np.sort(terms[order[drop:]])
         lens = self.ptr[terms + 1] - self.ptr[terms]

@@ -221,11 +221,14 @@ class Pairing(StrEnum):
 
 
 class SimilarityMeasure(StrEnum):
-    """``scene.similarity``: the caption similarity of the guard, pairing and same-kind distractors."""
+    """``scene.similarity``: the caption similarity of the guard, pairing and same-kind distractors
+    (``none``: no guard, the paper's random pairing)."""
 
+    LEXICON = "lexicon"
     WORDS = "words"
     TFIDF = "tfidf"
     EMBEDDINGS = "embeddings"
+    NONE = "none"
 
 
 def values(choices) -> tuple[str, ...]:

@@ -15,7 +15,7 @@ import zlib
 import numpy as np
 
 from .banks.scenes import BankRequest, open_bank_cached, resolve_bank, split_rooms
-from .captions import CaptionIndex, load_embeddings, max_similarity, tokens
+from .captions import CaptionIndex, caption_sets, load_embeddings, max_similarity
 from .catalog import MIN_CLIPS, CatalogScan, build_catalog, resolve_corpus_dir
 from .ambience import find_ambience
 from .choices import (LevelModel, NoiseSpectrum, Pairing, QueryType, Relation, Role, Scenario, SensorLevel,
@@ -35,15 +35,14 @@ from .store.layout import Layout
 
 
 class CatalogView:
-    """A split's clips with their caption tokens precomputed (shared by every scene), and
-    the resolved path of the RIR bank when scenes use one."""
+    """A split's clips with their caption sets and indexes made once (shared by every
+    scene), and the resolved path of the RIR bank when scenes use one."""
 
     def __init__(self, clips: list[Clip], bank_path: str | None = None, roots: Roots | None = None,
                  ambience=None):
         if len(clips) < MIN_CLIPS:
             raise TselError(f"a split needs at least {MIN_CLIPS} usable clips to make scenes, it has {len(clips)}")
         self.clips = clips
-        self.tokens = [tuple(tokens(c) for c in clip.captions) for clip in clips]
         # clips cut from the same recording (AudioCaps: same YouTube video) are one sound source
         self.source_key = [c.meta.get("youtube_id") or c.audio for c in clips]
         self.bank_path = bank_path
@@ -60,6 +59,13 @@ class CatalogView:
             vectors = load_embeddings(embeddings) if measure == SimilarityMeasure.EMBEDDINGS else None
             self._indexes[key] = CaptionIndex([c.captions for c in self.clips], measure, vectors,
                                               where=f"corpus.caption_embeddings {embeddings}")
+        return self._indexes[key]
+
+    def caption_sets(self, measure: str) -> list[tuple]:
+        """Each clip's captions as the sets ``measure`` compares (``words``, ``lexicon``), made once."""
+        key = ("sets", measure)
+        if key not in self._indexes:
+            self._indexes[key] = [tuple(caption_sets(c, measure) for c in clip.captions) for clip in self.clips]
         return self._indexes[key]
 
     @property
@@ -145,11 +151,15 @@ def scene_rng(seed: int, split: str, index: int, stream: int = 0) -> np.random.G
 
 
 def extended_queries(cfg: Config) -> bool:
-    """Whether the config uses queries beyond today's (a caption, random pairing, word
-    similarity): then recipes carry a QueryPlan and records the query fields."""
+    """Whether the config uses queries beyond a caption with random pairing under a set
+    measure (``lexicon``, ``words``, ``none``): then recipes carry a QueryPlan and records
+    the query fields."""
     sc = cfg.scene
     return (set(sc.query.options) != {QueryType.CAPTION} or sc.pairing != Pairing.RANDOM
-            or sc.same_kind_distractors > 0 or sc.similarity != SimilarityMeasure.WORDS)
+            or sc.same_kind_distractors > 0 or sc.similarity not in SET_MEASURES)
+
+
+SET_MEASURES = (SimilarityMeasure.LEXICON, SimilarityMeasure.WORDS, SimilarityMeasure.NONE)
 
 
 def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRecipe:
@@ -203,7 +213,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
             chosen.append(pairs.pick(rng, chosen, same_kind=pairs.wants_same_kind(k, n_int)))
     else:
         for _ in range(n_int):
-            chosen.append(_pick_interferer(rng, cat, chosen, cat.tokens[t][q], sc.caption_similarity, split, index))
+            chosen.append(_pick_interferer(rng, cat, chosen, (t, q), sc, split, index))
 
     additive = Spatial.DIFFUSE if sc.additive == "diffuse" else Spatial.ADDITIVE
     spatial = [Spatial.DIRECTIONAL] + [
@@ -391,13 +401,17 @@ def _starts(cfg: Config, split: str, index: int, n: int) -> list[float]:
     return [round(float(onset.sample(rng)), 4) for _ in range(n)]
 
 
-def _pick_interferer(rng, cat: CatalogView, chosen: list[int], query_tokens, max_sim: float, split, index) -> int:
+def _pick_interferer(rng, cat: CatalogView, chosen: list[int], query: tuple[int, int], sc, split, index) -> int:
+    """Any clip of another recording whose captions are at most ``sc.caption_similarity``
+    similar to caption ``query`` = (clip, caption) under ``sc.similarity`` (``none``: any)."""
     taken = {cat.source_key[i] for i in chosen}
+    measure, max_sim = str(sc.similarity), sc.caption_similarity
+    sets = cat.caption_sets(measure) if measure != SimilarityMeasure.NONE else None
     for _ in range(MAX_TRIES):
         j = int(rng.integers(len(cat.clips)))
         if j in chosen or cat.source_key[j] in taken:
             continue
-        if max_similarity(query_tokens, cat.tokens[j]) > max_sim:
+        if sets is not None and max_similarity(sets[query[0]][query[1]], sets[j], measure) > max_sim:
             continue
         return j
     raise TselError(
