@@ -124,7 +124,7 @@ def render_pra_default(recipe: SceneRecipe):
 
     from tsel_data.audio import active_rms, frame_activity, load_clip_cached
     from tsel_data.render import source_labels
-    from tsel_data.store.writer import RenderedScene
+    from tsel_data.store.scene import Scene
 
     np.random.seed(recipe.seed % 2**32)  # pra's generator is numpy's global one
     dims = list(recipe.room.dims)
@@ -145,8 +145,8 @@ def render_pra_default(recipe: SceneRecipe):
     mix *= np.float32(min(1.0, 0.99 / float(np.abs(mix).max())))
     labels = [source_labels(recipe, k) for k in range(len(recipe.sources))]
     az, el, dist = (np.stack([lab[i] for lab in labels]) for i in range(3))
-    return RenderedScene(recipe.scene_id, recipe.query, mix, az, el, dist, active,
-                         recipe.array.mics().astype(np.float32), {"scene_id": recipe.scene_id})
+    return Scene(recipe.scene_id, recipe.split, recipe.index, recipe.query, mix, az, el, dist, active,
+                 recipe.array.mics().astype(np.float32), recipe.fs, recipe.label_hop, recipe.array.format)
 
 
 def run_scenes(args) -> dict:

@@ -17,7 +17,8 @@ from tsel_data.receivers import mic_positions
 from tsel_data.store.dataset import dataset_doc, shard_attrs
 from tsel_data.store.records import SceneRecord
 from tsel_data.atomic import write_json
-from tsel_data.store.writer import RenderedScene, write_shard
+from tsel_data.store.scene import Scene
+from tsel_data.store.writer import write_shard
 
 C_SOUND = 343.0
 
@@ -96,14 +97,14 @@ def make_scene(split, index, *, fmt="mic4", rng, n_frames=20, fs=16000, hop_s=0.
         "sources": sources,
         "levels": {"target_level_dbfs": -25.0, "peak": float(np.max(np.abs(audio))), "normalisation_db": 0.0},
     }
-    return RenderedScene(scene_id=scene_id, query=record["query"], audio=audio, azimuth=az_arr, elevation=el_arr,
-                         distance=d_arr, active=act, mic_positions=mics.astype(np.float32),
-                         record=SceneRecord.from_json(record))
+    return Scene(scene_id=scene_id, split=split, index=index, query=record["query"], audio=audio, azimuth=az_arr,
+                 elevation=el_arr, distance=d_arr, active=act, mic_positions=mics.astype(np.float32), fs=fs,
+                 label_hop=hop_s, format=fmt, record=SceneRecord.from_json(record))
 
 
 def make_dataset(root, *, fmt="mic4", splits=None, seed=0, n_frames=20, fs=16000, moving=(), additive=(),
                  rotate=None, shard_size=2, target_az=None):
-    """Write a dataset under ``root``; returns {split: [RenderedScene, ...]}.
+    """Write a dataset under ``root``; returns {split: [Scene, ...]}.
 
     splits: {name: n_scenes}. moving / additive: scene ids with a moving target / an
     additive third source. rotate: {scene_id: degrees} added to that scene's labels.

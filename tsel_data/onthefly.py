@@ -123,13 +123,7 @@ class SceneSource:
 
     def get(self, i: int, epoch: int | None = None) -> Scene:
         """Scene ``i`` rendered now, as the offline reader returns it."""
-        r = self.recipe(i, epoch)
-        s = render_scene(r, self.view.roots)
-        rec = s.record
-        return Scene(scene_id=s.scene_id, split=self.split, index=r.index, query=s.query, audio=s.audio,
-                     azimuth=s.azimuth, elevation=s.elevation, distance=s.distance, active=s.active,
-                     mic_positions=s.mic_positions, fs=r.fs, label_hop=r.label_hop, format=r.array.format,
-                     record=rec, query_type=rec.query_type, query_relation=rec.query_relation, pairing=rec.pairing)
+        return render_scene(self.recipe(i, epoch), self.view.roots)
 
     def __getitem__(self, i: int) -> Scene:
         return self.get(int(i))

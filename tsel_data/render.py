@@ -33,7 +33,7 @@ from .queries import Truth, decide
 from .recipe import BankRef, Roots, SceneRecipe, array_frame_position_at
 from .store.records import (LABEL_DECIMALS, ArrayRecord, LevelsRecord, NoiseRecord, RoomRecord, SceneRecord,
                             SourceRecord, label_list)
-from .store.writer import RenderedScene
+from .store.scene import Scene
 from .timevarying import render_moving, render_static
 
 # The mix's peak is kept below full scale, so 16-bit exports do not clip: if the mixed
@@ -290,7 +290,7 @@ def _mixed_noise(recipe: SceneRecipe, item, target: np.ndarray, level_ch) -> "Mi
     return MixedNoise(item, g, scaled, snr)
 
 
-def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> RenderedScene:
+def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
     """Render one scene: its mixture, per-frame labels and record.
 
     Depends on nothing but the recipe and the files it names (clips, the RIR bank), so
@@ -305,8 +305,8 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> RenderedSce
 
     Returns
     -------
-    RenderedScene
-        ``audio`` float32 [C, T] (T = duration·fs), ``azimuth``/``elevation`` float32
+    Scene
+        The type the reader returns (store/scene.py): ``audio`` float32 [C, T] (T = duration·fs), ``azimuth``/``elevation`` float32
         [S, F] degrees and ``distance`` [S, F] metres in the array frame (NaN for additive
         sources), ``active`` bool [S, F], ``mic_positions`` float32 [C, 3] metres, and the
         :class:`~tsel_data.store.records.SceneRecord`.
@@ -327,7 +327,7 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> RenderedSce
     dist = np.stack([l[2] for l in labels])
     mics = recipe.array.mics().astype(np.float32)
 
-    query, extra, qinfo = recipe.query, {}, None
+    query, extra, margin = recipe.query, {}, float("nan")
     qp = recipe.query_plan
     if qp is not None:
         # decided on what was rendered: image levels in the mix, activity and position labels
@@ -338,8 +338,6 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> RenderedSce
         extra = dict(query_type=str(d.type), query_relation=d.relation, query_evidence=d.evidence,
                      query_alternatives=list(d.alternatives), pairing=qp.pairing, query_wanted=qp.wanted)
         margin = d.evidence["value"] if d.evidence else float("nan")
-        qinfo = {"query_type": str(d.type), "query_relation": d.relation or "", "query_margin": margin,
-                 "pairing": qp.pairing}
     room, centre, yaw = _room_and_pose(files, rt60_measured, recipe.bank)
     record = SceneRecord(
         scene_id=recipe.scene_id, split=recipe.split, index=recipe.index, seed=recipe.seed,
@@ -366,7 +364,10 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> RenderedSce
     )
     others = {p.format: (m, p.mics().astype(np.float32)) for p, (_, m) in zip(recipe.receivers, parts.others)}
     noise = {n.kind: (n.snr_db, n.level_dbfs) for n in record.noise}
-    return RenderedScene(recipe.scene_id, query, mix, az, el, dist, active, mics, record, qinfo, others, noise)
+    return Scene(recipe.scene_id, recipe.split, recipe.index, query, mix, az, el, dist, active, mics, recipe.fs,
+                 recipe.label_hop, recipe.array.format, record, query_type=record.query_type,
+                 query_relation=record.query_relation, pairing=record.pairing, query_margin=margin, receivers=others,
+                 noise=noise)
 
 
 def _noise_record(item, nz, norm: float, level_ch) -> NoiseRecord:

@@ -10,8 +10,8 @@ from .dataset import CONVENTIONS, FORMAT_VERSION, DatasetDoc, ShardEntry, load_d
 from .layout import Layout, shard_names
 from .reader import Scene, SceneDataset, list_splits, open_dataset
 from .records import ArrayRecord, LevelsRecord, RoomRecord, SceneRecord, SourceRecord
-from .writer import RenderedScene, write_shard
+from .writer import write_shard
 
-__all__ = ["CONVENTIONS", "FORMAT_VERSION", "ArrayRecord", "DatasetDoc", "Layout", "LevelsRecord", "RenderedScene",
-           "RoomRecord", "Scene", "SceneDataset", "SceneRecord", "ShardEntry", "SourceRecord", "list_splits",
+__all__ = ["CONVENTIONS", "FORMAT_VERSION", "ArrayRecord", "DatasetDoc", "Layout", "LevelsRecord", "RoomRecord",
+            "Scene", "SceneDataset", "SceneRecord", "ShardEntry", "SourceRecord", "list_splits",
            "load_dataset_doc", "open_dataset", "shard_attrs", "shard_names", "write_shard"]

@@ -181,7 +181,8 @@ class SceneDataset:
                 coding=coding_of(f[self._group + "audio"]), raw_chunks=_raw_chunks(f[self._group + "audio"]),
                 fs=int(f.attrs.get("fs", self.fs)), label_hop=float(f.attrs.get("label_hop", self.label_hop)),
                 format=self.format if self._group else as_str(f.attrs.get("format"), self.format),
-                query_columns={k: list(f[k].asstr()[()]) for k in ("query_type", "query_relation", "pairing")}
+                query_columns={**{k: list(f[k].asstr()[()]) for k in ("query_type", "query_relation", "pairing")},
+                               "query_margin": f["query_margin"][()].astype(float).tolist()}
                 if "query_type" in f else None)
             self._check_pair(k, m.ids)
             self._meta[k] = m
@@ -238,9 +239,10 @@ class SceneDataset:
         # Shards pad S to their largest scene; trim to this scene's own sources.
         n_src = len(rec.sources) if rec is not None and rec.sources else m.labels["azimuth"].shape[1]
         lab = m.labels
-        qc = m.query_columns
+        qc, margin = m.query_columns, float("nan")
         if qc is not None:
             qtype, qrel, pairing = qc["query_type"][r], qc["query_relation"][r] or None, qc["pairing"][r]
+            margin = qc["query_margin"][r]
         elif rec is not None:
             qtype, qrel, pairing = rec.query_type, rec.query_relation, rec.pairing
         else:
@@ -263,6 +265,7 @@ class SceneDataset:
             query_type=qtype,
             query_relation=qrel,
             pairing=pairing,
+            query_margin=margin,
         )
 
     @staticmethod

@@ -25,6 +25,14 @@ class Scene:
                    relation stated (None for a caption); pairing: ``random``, ``hard``,
                    ``easy``, ``same-kind`` or ``mixed`` (docs/queries.md). Datasets made
                    with default query settings read as ``caption`` / ``random``.
+                   query_margin: the evidence of a relational query (NaN otherwise).
+    receivers:     further receivers heard in the same pass (``scene.receivers``):
+                   name -> (audio [C, T], mic_positions [C, 3]); None without them (the
+                   reader opens them with ``receiver=NAME``).
+    noise:         with ``[noise]``, kind -> (snr_db or None, level_dbfs); else None.
+
+    The renderer returns this type too (``render_scene``; the on-the-fly source hands it
+    on as it is), and the shard writer stores it.
     """
 
     scene_id: str
@@ -44,6 +52,9 @@ class Scene:
     query_type: str = "caption"
     query_relation: str | None = None
     pairing: str = "random"
+    query_margin: float = float("nan")
+    receivers: dict | None = None
+    noise: dict | None = None
 
     @property
     def n_sources(self) -> int:

@@ -12,7 +12,7 @@ import hashlib
 import json
 import os
 import shutil
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import h5py
 import numpy as np
@@ -26,45 +26,28 @@ from .integrity import FileSeal, Seal, sha256_file
 from .layout import Layout, shard_names
 from ..receivers import receiver
 from .layout import NOISE_GROUP, RECEIVERS_GROUP
-from .records import LABEL_KEYS, SceneRecord
+from .records import LABEL_KEYS
+from .scene import Scene
 
 # Space a write needs beyond its bytes (HDF5 metadata, the file system), as a fraction:
 # the free-space check before each write leaves this margin (see _check_space).
 SPACE_MARGIN = 0.25
 
 
-@dataclass
-class RenderedScene:
-    """One rendered scene, ready to store.
-
-    audio: float32 [C, T]. azimuth/elevation/distance: float32 [S, F] (NaN where a
-    source has no position). active: bool [S, F]. mic_positions: float32 [C, 3] array
-    frame. record: the JSON description of the scene (docs/format.md). query_info: with
-    extended queries, the shard's per-scene query columns (``query_type``,
-    ``query_relation``, ``query_margin``, ``pairing``); None otherwise. receivers: the
-    scene heard by further receivers at the same place (``scene.receivers``), stored under
-    ``receivers/NAME/`` of the shard; None or empty otherwise.
-    """
-
-    scene_id: str
-    query: str
-    audio: np.ndarray | None
-    azimuth: np.ndarray
-    elevation: np.ndarray
-    distance: np.ndarray
-    active: np.ndarray
-    mic_positions: np.ndarray
-    record: SceneRecord | None = None
-    query_info: dict | None = None
-    receivers: dict | None = None  # further receivers of one pass: name -> (audio [C, T], mic_positions [C, 3])
-    noise: dict | None = None  # [noise]: kind -> (snr_db or None, level_dbfs)
-
-
 # Per-scene query columns of a shard with extended queries (docs/format.md): name -> default.
 QUERY_COLUMNS = {"query_type": "caption", "query_relation": "", "query_margin": float("nan"), "pairing": "random"}
 
 
-def write_shard(out_dir: str, split: str, shard: int, scenes: list[RenderedScene], attrs: dict,
+def _query_row(s: Scene) -> dict | None:
+    """A scene's values of the shard's query columns (:data:`QUERY_COLUMNS`), or None for
+    a scene of default queries."""
+    if s.record is None or not s.record.extended:
+        return None
+    return {"query_type": s.query_type, "query_relation": s.query_relation or "", "query_margin": s.query_margin,
+            "pairing": s.pairing}
+
+
+def write_shard(out_dir: str, split: str, shard: int, scenes: list[Scene], attrs: dict,
                 fingerprint: str = "") -> ShardEntry:
     """Write a shard of scenes already in memory (see :class:`ShardWriter`, which streams)."""
     with ShardWriter(out_dir, split, shard, len(scenes), attrs, fingerprint) as w:
@@ -100,7 +83,8 @@ class ShardWriter:
         self.h5_path, self.json_path = layout.shard_files(split, shard)
         self.seal_path = layout.seal_file(split, shard)
         self.tmp = f"{self.h5_path}.tmp-{os.getpid()}"
-        self.kept: list[RenderedScene] = []  # without audio and record
+        self.kept: list[Scene] = []  # without audio and record
+        self.query_rows: list[dict | None] = []
         self.records: list[str] = []  # each scene's record, as it appears in the JSON shard
         self.entry: ShardEntry | None = None
         self._h5 = self._audio = None
@@ -117,7 +101,7 @@ class ShardWriter:
             raise write_error(self.h5_rel, e, self.out_dir) from None
         return self
 
-    def add(self, scene: RenderedScene) -> None:
+    def add(self, scene: Scene) -> None:
         """Write one scene (the shard's scenes in order)."""
         i = len(self.kept)
         if i >= self.n:
@@ -139,6 +123,7 @@ class ShardWriter:
             raise write_error(self.h5_rel, e, self.out_dir) from None
         # keep the record as the JSON text it becomes: a fraction of its Python objects' size
         self.records.append(json.dumps(jsonable(scene.record), ensure_ascii=False, indent=1).replace("\n", "\n  "))
+        self.query_rows.append(_query_row(scene))
         self.kept.append(replace(scene, audio=None, record=None,
                                  receivers={k: (None, m) for k, (_, m) in (scene.receivers or {}).items()}))
 
@@ -174,9 +159,9 @@ class ShardWriter:
                              track_times=False)
             h.create_dataset("scene_id", data=np.array([s.scene_id for s in scenes], dtype=object), dtype=str_t,
                              track_times=False)
-            if any(s.query_info for s in scenes):  # absent otherwise: default shards keep their bytes
+            if any(self.query_rows):  # absent otherwise: default shards keep their bytes
                 for key, default in QUERY_COLUMNS.items():
-                    vals = [(s.query_info or {}).get(key, default) for s in scenes]
+                    vals = [(row or QUERY_COLUMNS)[key] for row in self.query_rows]
                     if isinstance(default, str):
                         h.create_dataset(key, data=np.array(vals, dtype=object), dtype=str_t, track_times=False)
                     else:
