@@ -275,7 +275,7 @@ def _bank_case(tmp_path, name):
         needles = ["splits.train.rooms", "no room 'roomZ'", "roomA, roomB"]
     elif name == "sample-rate":
         _bank(p, fs=16000)
-        needles = ["RIRs are at 16000 Hz but the scenes are at 24000 Hz", "set fs = 16000"]
+        needles = ["RIRs are at 16000 Hz but the scenes are at 24000 Hz", "set audio.fs = 16000"]
     elif name == "positions-missing":
         _bank(p)
         with h5py.File(p, "a") as h:

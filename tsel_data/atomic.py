@@ -4,7 +4,7 @@ Every file the toolkit writes (shards, plans, ``dataset.json``, exports, picture
 banks, the demo corpus) goes through here or through the same steps: a temporary name
 ``PATH.tmp-PID``, flushed to disk, renamed over ``PATH`` (atomic on POSIX), the folder
 synced. A killed writer leaves only a temporary file, which the next writer of the same
-path removes. A failure (full disk, read-only folder) is one :class:`DatasetError` line
+path removes. A failure (full disk, read-only folder) is one :class:`WriteError` line
 naming the file; nothing under a final name is ever partial.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ import json
 import os
 from contextlib import contextmanager
 
-from .errors import DatasetError
+from .errors import WriteError, shown_path
 from .jsonable import jsonable
 
 
@@ -23,7 +23,7 @@ from .jsonable import jsonable
 def atomic_output(path: str, what: str | None = None):
     """``with atomic_output(path) as tmp:`` write ``tmp``; it becomes ``path`` when the
     block ends without error, and disappears otherwise. Write failures (OSError, and the
-    RuntimeError some libraries raise for a full disk) become one DatasetError line
+    RuntimeError some libraries raise for a full disk) become one WriteError line
     naming ``what`` (default: the path)."""
     remove_stale_tmp(path)
     tmp = f"{path}.tmp-{os.getpid()}"
@@ -35,7 +35,7 @@ def atomic_output(path: str, what: str | None = None):
     except (OSError, RuntimeError) as e:
         if isinstance(e, RuntimeError) and not _looks_like_io(e):
             raise
-        raise write_error(what or path, e, os.path.dirname(os.path.abspath(path))) from None
+        raise write_error(what or shown_path(path), e, os.path.dirname(os.path.abspath(path))) from None
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
@@ -64,12 +64,12 @@ def atomic_write(path: str, data: bytes) -> None:
 
 def write_text(path: str, text: str) -> None:
     """Write a text file atomically (:func:`atomic_write`), removing temporary files of
-    killed writers first; a failed write is one DatasetError line naming the file."""
+    killed writers first; a failed write is one WriteError line naming the file."""
     remove_stale_tmp(path)
     try:
         atomic_write(path, text.encode("utf-8"))
     except OSError as e:
-        raise write_error(os.path.basename(path), e, os.path.dirname(path)) from None
+        raise write_error(shown_path(path), e, os.path.dirname(os.path.abspath(path))) from None
 
 
 def write_json(path: str, doc) -> None:
@@ -144,25 +144,78 @@ def _alive(pid: int) -> bool:
 _NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
 _NOT_WRITABLE = (errno.EACCES, errno.EPERM, errno.EROFS)
 _NOT_WRITABLE_TEXT = ("Permission denied", "Operation not permitted", "Read-only file system")
+# a write that fails for no reason its library gives (libsndfile's "System error.") with
+# less than this free on the disk failed for want of space
+_NEARLY_FULL = 1 << 20
 
 
-def write_error(what: str, e: OSError, out_dir: str = "") -> DatasetError:
-    """A one-line DatasetError for a failed write (full disk, unwritable folder, ...).
+def write_error(what: str, e: OSError, out_dir: str = "", resumable: bool = False) -> WriteError:
+    """A one-line WriteError for a failed write of ``what`` (a file, named as the message
+    names it) into ``out_dir``: a full disk, a folder not writable or not there.
 
-    h5py reports HDF5 failures as OSError without errno; the reason is then read from
-    the message.
+    The reason comes from the errno; h5py reports HDF5 failures without one and
+    libsndfile says only "System error.", so then it is read from the message, and
+    failing that from the folder itself (missing, a link to nowhere, not writable, a disk
+    with next to no space). ``resumable``: what was written before stays (a dataset's
+    shards), and the message says to rerun with ``--resume``.
     """
     text = str(e)
     errno_ = getattr(e, "errno", None)  # RuntimeError from h5py has none
-    where = out_dir or "the output folder"
-    if errno_ in _NO_SPACE or "No space left" in text or "Disk quota" in text:
-        why = (f"no space left on the device; free space (or move {where} elsewhere) and rerun with --resume: "
-               f"finished shards are kept")
-        reason = "disk full"
-    elif errno_ in _NOT_WRITABLE or any(m in text for m in _NOT_WRITABLE_TEXT):
-        why = f"{where} is not writable; fix its permissions or choose another --out"
+    folder = out_dir or os.path.dirname(os.path.abspath(getattr(e, "filename", None) or what))
+    where = shown_path(folder) if folder else "the output folder"
+    elsewhere = "choose another --out" if resumable else "write elsewhere"
+    full = errno_ in _NO_SPACE or "No space left" in text or "Disk quota" in text or "errno = 28" in text
+    not_writable = errno_ in _NOT_WRITABLE or any(m in text for m in _NOT_WRITABLE_TEXT)
+    gone = None
+    if not full and not not_writable:
+        gone = _missing_folder(getattr(e, "filename", None) or "", folder)
+        full = gone is None and _nearly_full(folder)
+        not_writable = gone is None and not full and _exists_unwritable(folder)
+    if full:
+        reason, why = "disk full", "no space left on the device; free space" + ("" if resumable else
+                                                                               " or write to another disk")
+    elif not_writable:
         reason = getattr(e, "strerror", None) or next((m for m in _NOT_WRITABLE_TEXT if m in text), "not writable")
+        why = f"{where} is not writable; fix its permissions or {elsewhere}"
+    elif gone is not None:
+        reason, why = gone
     else:
-        why = "check the output folder and rerun with --resume"
         reason = getattr(e, "strerror", None) or (text.splitlines()[0][:200] if text else type(e).__name__)
-    return DatasetError(f"cannot write {what}: {reason}; {why}")
+        why = f"check {where}"
+    return WriteError(f"cannot write {what}: {reason}; {why}", resumable)
+
+
+def _existing(folder: str) -> str:
+    """``folder``, or the nearest folder above it that exists."""
+    folder = os.path.abspath(folder or ".")
+    while not os.path.isdir(folder) and os.path.dirname(folder) != folder:
+        folder = os.path.dirname(folder)
+    return folder
+
+
+def _missing_folder(filename: str, folder: str) -> tuple[str, str] | None:
+    """(reason, fix) when the file's folder is not there: a symbolic link to nothing on the
+    way to it, or a folder that does not exist."""
+    for start in (filename, folder):
+        p = os.path.abspath(start) if start else ""
+        while p and os.path.dirname(p) != p:
+            if os.path.islink(p) and not os.path.exists(p):
+                link = shown_path(p)
+                return (f"{link} is a symbolic link to {shown_path(os.readlink(p))}, which does not exist",
+                        f"create what it points to, or remove the link and run again")
+            p = os.path.dirname(p)
+    if folder and not os.path.isdir(folder):
+        return f"the folder {shown_path(folder)} does not exist", "create it or write elsewhere"
+    return None
+
+
+def _nearly_full(folder: str) -> bool:
+    try:
+        st = os.statvfs(_existing(folder))
+    except OSError:
+        return False
+    return st.f_bavail * st.f_frsize < _NEARLY_FULL
+
+
+def _exists_unwritable(folder: str) -> bool:
+    return os.path.isdir(folder) and not os.access(folder, os.W_OK)

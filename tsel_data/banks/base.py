@@ -85,7 +85,7 @@ class Bank:
     def require_fs(self, fs: int) -> None:
         """Raise BankError unless the bank's sample rate is ``fs`` (banks are never resampled silently)."""
         if int(fs) != int(self.fs):
-            raise BankError(f"{self.source}: RIRs are at {self.fs} Hz but the scenes are at {int(fs)} Hz; set fs = {self.fs} or use a bank at {int(fs)} Hz")
+            raise BankError(f"{self.source}: RIRs are at {self.fs} Hz but the scenes are at {int(fs)} Hz; set audio.fs = {self.fs} or use a bank at {int(fs)} Hz")
 
     def check_room(self, room: str) -> None:
         if room not in self.rooms:

@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from ..errors import BankError
+from ..atomic import write_error
+from ..errors import BankError, WriteError, shown_path
 from ..h5str import as_str, as_strs
 from .base import Bank, Trajectory, check_format, check_rate
 from ._h5 import H5Pool, read_rows
@@ -148,8 +150,9 @@ def write_bank(path, bank: Bank, rooms=None, provenance: dict | None = None, pro
     in the file (source, command, seed...). overwrite: replace an existing file (refused
     otherwise). check: refuse, before writing, a room whose positions or RIR shapes cannot
     be trusted (banks/plausible.py; tests turn it off to write damaged banks). The file
-    is written under a temporary name and renamed when whole; a failed write is one
-    BankError line naming the file. Returns the path.
+    is written under a temporary name and renamed when whole; a disk that cannot hold it
+    is refused before the first byte, and a failed write is one WriteError line naming the
+    file. Returns the path.
     """
     path = Path(path)
     if path.exists() and not overwrite:
@@ -159,21 +162,47 @@ def write_bank(path, bank: Bank, rooms=None, provenance: dict | None = None, pro
         problem = positions_problem(bank, room) or rirs_problem(bank, room, content=False)
         if problem:
             raise problem
+    rooms_out = _shapes(bank, names)
     tmp = path.with_name(path.name + ".tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        _write(tmp, bank, names, provenance, progress)
+        _check_space(path, rooms_out)
+        _write(tmp, bank, rooms_out, provenance, progress)
         os.replace(tmp, path)
     except (OSError, RuntimeError) as e:  # h5py reports some write failures as RuntimeError
-        why = getattr(e, "strerror", None) or str(e).splitlines()[0]
-        raise BankError(f"cannot write {path}: {why}; free space or choose another --out") from None
+        raise write_error(shown_path(str(path)), e, str(path.parent.absolute())) from None
     finally:
         if tmp.exists():
             tmp.unlink()
     return path
 
 
-def _write(tmp: Path, bank: Bank, names: list, provenance: dict | None, progress) -> None:
+def _shapes(bank: Bank, names: list) -> list[tuple[str, list, int, int]]:
+    """(room, trajectories, channels, RIR length) of every room the file will hold (a
+    room with no RIRs is left out). The longest RIR sets the room's length (shorter ones
+    are zero-padded)."""
+    out = []
+    for room in names:
+        trajs = bank.trajectories(room)
+        if sum(len(t) for t in trajs) == 0:
+            continue
+        heads = [bank.read(room, t.id, [0]).shape[1:] for t in trajs]
+        out.append((room, trajs, heads[0][0], max(s[1] for s in heads)))
+    return out
+
+
+def _check_space(path: Path, rooms: list) -> None:
+    """Refuse, before the first byte, a bank the disk cannot hold: HDF5 that runs out of
+    space mid-file fails again on closing, and can take the process down with it."""
+    need = sum(sum(len(t) for t in trajs) * (C * L * 4 + 3 * 8) for _, trajs, C, L in rooms)
+    need = int(need * 1.02) + (1 << 20)  # chunk index, attributes, trajectories
+    free = shutil.disk_usage(path.parent).free
+    if free < need:
+        raise WriteError(f"cannot write {shown_path(str(path))}: the bank takes about {need / 1e6:.1f} MB and the "
+                         f"disk has {free / 1e6:.1f} MB free; free space or write to another disk")
+
+
+def _write(tmp: Path, bank: Bank, rooms: list, provenance: dict | None, progress) -> None:
     prov = {"source": str(bank.source), "source_kind": bank.kind, **(provenance or {})}
     with h5py.File(tmp, "w", track_order=True) as f:
         f.attrs["tsel_bank"] = VERSION
@@ -182,14 +211,8 @@ def _write(tmp: Path, bank: Bank, names: list, provenance: dict | None, progress
         f.attrs["channel_names"] = json.dumps(list(bank.channel_names))
         f.attrs["provenance"] = json.dumps(prov, sort_keys=True)
         top = f.create_group("rooms", track_order=True)
-        for room in names:
-            trajs = bank.trajectories(room)
+        for room, trajs, C, L in rooms:
             n = sum(len(t) for t in trajs)
-            if n == 0:
-                continue
-            # The longest RIR sets the room's length (shorter ones are zero-padded).
-            heads = [bank.read(room, t.id, [0]).shape[1:] for t in trajs]
-            C, L = heads[0][0], max(s[1] for s in heads)
             g = top.create_group(room)
             g.attrs["info"] = json.dumps(bank.room_info(room), sort_keys=True)
             rirs = g.create_dataset("rirs", (n, C, L), dtype="f4", chunks=(1, C, L), track_times=False)

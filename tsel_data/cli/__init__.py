@@ -17,7 +17,7 @@ from concurrent.futures.process import BrokenProcessPool
 import click
 from click.exceptions import NoArgsIsHelpError
 
-from ..errors import TselError
+from ..errors import TselError, WriteError, tidy_message
 from ..executors import Stopped, stop_requested, stop_signals
 
 # command name -> (module in this package, the click command in it)
@@ -77,6 +77,8 @@ def main(argv=None) -> None:
 def _run(argv):
     try:
         return cli.main(args=argv, prog_name="tsel", standalone_mode=False)
+    except WriteError as e:  # how to go on is the command's: only generate has --resume
+        _fail(f"{e.problem}, then {_AFTER_WRITE.get(_command(argv), 'run it again') if e.resumable else 'run it again'}")
     except TselError as e:
         _fail(str(e))
     except NoArgsIsHelpError as e:  # `tsel` or `tsel bank` alone: the help is the answer
@@ -100,14 +102,21 @@ def _run(argv):
 # what is kept after a stop, and how to go on, by command
 _AFTER_STOP = {"generate": "rerun with --resume to continue: finished shards are kept",
                "render": "run it again to render the rest: finished shards are kept"}
+# after a failed write of a shard (the others stay)
+_AFTER_WRITE = {"generate": "rerun with --resume: finished shards are kept",
+                "render": "run it again: finished shards are kept"}
+
+
+def _command(argv) -> str:
+    """The command asked for (``generate`` of ``tsel generate --out x``)."""
+    args = sys.argv[1:] if argv is None else argv
+    return next((a for a in args if not a.startswith("-")), "")
 
 
 def _stopped(e: Stopped, argv) -> None:
     """The run was stopped by a signal: one line (unless the stop said so already while
     its tasks finished), and exit 128 + the signal's number."""
-    args = sys.argv[1:] if argv is None else argv
-    command = next((a for a in args if not a.startswith("-")), "")
-    after = _AFTER_STOP.get(command, "run it again: nothing half-written was kept")
+    after = _AFTER_STOP.get(_command(argv), "run it again: nothing half-written was kept")
     if e.now:
         what = f" {e.discarded} {e.noun}{'' if e.discarded == 1 else 's'} in flight discarded;" if e.discarded else ""
         line = f"stopped now ({e.signal_name}):{what} {after}"
@@ -131,9 +140,16 @@ def _stopped(e: Stopped, argv) -> None:
 
 
 def _fail(message: str, code: int = 2) -> None:
-    """One line on stderr, whatever the message holds (names with newlines are escaped)."""
-    click.echo(f"error: {one_line(message)}", err=True)
+    """One line on stderr, whatever the message holds (names with newlines are escaped),
+    naming files as the user would (no folder of the machine the user did not name)."""
+    click.echo(f"error: {say(message)}", err=True)
     sys.exit(code)
+
+
+def say(message: str) -> str:
+    """A message as every ``error:``, ``warning:`` and ``note:`` line prints it: one line,
+    its files named relative to the working folder (errors.tidy_message)."""
+    return one_line(tidy_message(message))
 
 
 def one_line(text: str) -> str:

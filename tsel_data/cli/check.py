@@ -6,6 +6,7 @@ import json
 import click
 
 from ..errors import TselError
+from . import say
 from .options import config_options, load, manifest_option, worker_count
 
 SHOW = 20  # problems printed per kind; the rest are counted (--json lists them all)
@@ -61,6 +62,6 @@ def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, release
 
 def _print(kind: str, lines: list[str]) -> None:
     for line in lines[:SHOW]:
-        click.echo(f"{kind}: {line}", err=True)
+        click.echo(f"{kind}: {say(line)}", err=True)
     if len(lines) > SHOW:
         click.echo(f"{kind}: ... and {len(lines) - SHOW} more (--json lists all)", err=True)

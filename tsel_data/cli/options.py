@@ -7,6 +7,7 @@ import click
 
 from ..choices import Executor, values
 from ..errors import TselError
+from . import say
 
 
 def config_options(f):
@@ -82,7 +83,7 @@ def note_unfinished(dataset_dir: str) -> None:
 
     note = dataset_doc(dataset_dir, unfinished=True).unfinished_note(dataset_dir)
     if note:
-        click.echo(f"note: {note}", err=True)
+        click.echo(f"note: {say(note)}", err=True)
 
 
 def roots_options(f):

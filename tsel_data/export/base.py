@@ -233,7 +233,7 @@ class ExportJob:
         """``with job.output("train/x.tar") as tmp:`` write ``tmp``; it becomes the file
         when the block ends (atomic_output)."""
         full = self.path(rel)
-        with atomic_output(full, rel) as tmp:
+        with atomic_output(full) as tmp:  # a failure names the file with its folder
             yield tmp
 
     def write_text(self, rel: str, text: str) -> str:

@@ -98,7 +98,7 @@ class ShardWriter:
             if os.path.exists(self.seal_path):
                 os.remove(self.seal_path)  # an old seal must never vouch for new files
         except OSError as e:
-            raise write_error(self.h5_rel, e, self.out_dir) from None
+            raise write_error(self.h5_rel, e, self.out_dir, resumable=True) from None
         return self
 
     def add(self, scene: Scene) -> None:
@@ -120,7 +120,7 @@ class ShardWriter:
             for name, (audio, _) in others.items():
                 self._others[name][i] = encode(audio, self.coding, int(self.attrs["fs"]))
         except (OSError, RuntimeError) as e:  # h5py reports some HDF5 write failures as RuntimeError
-            raise write_error(self.h5_rel, e, self.out_dir) from None
+            raise write_error(self.h5_rel, e, self.out_dir, resumable=True) from None
         # keep the record as the JSON text it becomes: a fraction of its Python objects' size
         self.records.append(json.dumps(jsonable(scene.record), ensure_ascii=False, indent=1).replace("\n", "\n  "))
         self.query_rows.append(_query_row(scene))
@@ -199,7 +199,7 @@ class ShardWriter:
             seal = Seal(self.fingerprint, h5_seal, json_seal)
             atomic_write(self.seal_path, (json.dumps(seal.to_json()) + "\n").encode())
         except (OSError, RuntimeError) as e:
-            raise write_error(what, e, self.out_dir) from None
+            raise write_error(what, e, self.out_dir, resumable=True) from None
         self.entry = ShardEntry(self.h5_rel, self.json_rel, len(scenes), h5_seal.sha256, json_seal.sha256)
 
 
