@@ -188,3 +188,17 @@ def test_the_cache_folder_can_live_elsewhere(tmp_path, monkeypatch):
     assert not os.path.exists(tmp_path / ".tsel-clips") and os.listdir(tmp_path / "cache")
     with pytest.raises(FileNotFoundError):
         audio.prepare_clip(str(tmp_path / "missing.wav"), 24000, 1.0, 0.0)
+
+
+@pytest.mark.parametrize("record", ["not json", '{"version": 1, "source": [], "prepared": 3}', None])
+def test_a_prepared_clip_without_a_readable_record_is_never_used(tmp_path, record):
+    p, npy = _prepared_clip(tmp_path)
+    np.save(npy, np.full(24000, 0.3, np.float32))
+    rec = prepared.record_path(npy)
+    if record is None:
+        os.remove(rec)  # a prepared file of an older toolkit, or an interrupted write
+    else:
+        with open(rec, "w") as f:
+            f.write(record)
+    np.testing.assert_array_equal(audio.load_clip_cached(p, 24000, 1.0, 0.0), audio.load_clip(p, 24000, 1.0, 0.0))
+    assert audio.prepare_clip(p, 24000, 1.0, 0.0)  # made again, with its record

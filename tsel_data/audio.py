@@ -240,7 +240,7 @@ def keep_prepared(path: str, fs: int, duration: float, offset: float, prepare: b
     """
     try:
         stamp = stamp_of(os.stat(path))
-    except OSError:
+    except (OSError, ValueError):
         return None  # gone since its check: found again where it is read
     state, x, why = lookup(path, stamp, fs, duration, offset, read=deep, deep=deep)
     if prepare and (state == "changed" or (state == "absent" and wanted)):
@@ -286,7 +286,7 @@ def load_clip_cached(path: str, fs: int, duration: float, offset: float) -> np.n
     may (NaN, Inf, absurd peaks): those are the clip's problems, never the simulator's."""
     try:
         stamp = stamp_of(os.stat(path))
-    except OSError:
+    except (OSError, ValueError):  # ValueError: a NUL byte in the name
         stamp = None  # load_clip says what is wrong
     return _load_clip_cached(path, stamp, fs, duration, offset)
 

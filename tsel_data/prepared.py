@@ -88,9 +88,9 @@ def lookup(path: str, stamp: tuple, fs: int, duration: float, offset: float,
         with open(record_path(p), encoding="utf-8") as f:
             rec = json.load(f)
         src, mine = rec["source"], rec["prepared"]
-        if rec.get("version") != RECORD_VERSION:
+        if rec.get("version") != RECORD_VERSION or not isinstance(src, dict) or not isinstance(mine, dict):
             return "absent", None, ""
-    except (OSError, ValueError, KeyError, TypeError):
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return "absent", None, ""
     if [src.get("size"), src.get("mtime_ns")] != list(stamp[:2]):
         return "changed", None, "the clip changed since it was prepared"
@@ -115,8 +115,11 @@ def lookup(path: str, stamp: tuple, fs: int, duration: float, offset: float,
         return "absent", None, ""
     if hashlib.sha256(data).hexdigest() != mine.get("sha256"):
         return "changed", None, "the prepared file changed since it was written (sha256 differs from its record)"
-    x = np.load(io.BytesIO(data), allow_pickle=False)
-    if x.dtype != np.float32 or x.shape != (int(round(duration * fs)),):
+    try:
+        x = np.load(io.BytesIO(data), allow_pickle=False)
+    except (ValueError, OSError, EOFError):
+        return "changed", None, "the prepared file is not a NumPy array"
+    if not isinstance(x, np.ndarray) or x.dtype != np.float32 or x.shape != (int(round(duration * fs)),):
         return "changed", None, f"the prepared file holds {x.dtype} {list(x.shape)}, not this scene length"
     return "ok", x, ""
 
