@@ -141,12 +141,13 @@ def test_tsel_check_refuses_a_changed_prepared_clip(tmp_path, decoded, tsel_cli)
     cfg = _config(corpus)
     args = ["check", "--preset", "demo", "--corpus-dir", corpus, "--split", "train=3", "--split", "val=0",
             "--split", "test=0", "--set", "audio.duration=2.0"]
-    assert tsel_cli.run(*args)[0] == 0  # and writes no prepared clip
     from tsel_data.catalog import build_catalog, prepare_corpus
-    clips = build_catalog(cfg, corpus).clips
-    prepare_corpus(cfg, clips)
+    clips = build_catalog(_config(corpus, "corpus.prepare_on_check=false"), corpus).clips
     victim = clips["train"][0]
     st = prepared.stamp_of(os.stat(victim.audio))
+    assert tsel_cli.run(*args)[0] == 0
+    assert prepared.lookup(victim.audio, st, 24000, 2.0, victim.offset)[0] == "absent"  # a check writes nothing
+    prepare_corpus(cfg, clips)
     np.save(prepared.prepared_path(victim.audio, st, 24000, 2.0, victim.offset), np.zeros(48000, np.float32))
     code, out, err = tsel_cli.run(*args)
     assert code == 2, (out, err)  # a config check's problems
