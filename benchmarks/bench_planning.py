@@ -25,7 +25,8 @@ from tsel_data.plan import plan_split_json, prepare_views  # noqa: E402
 from tsel_data.store.layout import Layout  # noqa: E402
 
 SETTINGS = {
-    "random, words (default)": [],
+    "random, lexicon (default)": [],
+    "random, words": ['scene.similarity="words"'],
     "random, tfidf": ['scene.similarity="tfidf"'],
     "hard, tfidf": ['scene.similarity="tfidf"', 'scene.pairing="hard"'],
     "easy, tfidf": ['scene.similarity="tfidf"', 'scene.pairing="easy"'],

@@ -24,7 +24,7 @@ it its this that these those there here then than while whilst during followed f
 into onto over under up down out off some someone's something very far nearby near distance distant
 background foreground loud loudly quiet quietly softly soft faint faintly several multiple many few
 frequently frequent roughly smoothly kind sort well lot lots meanwhile effect environment single
-white row pitch pitched echo outside outdoors indoors inside concurrent nonstop vocalize vocalization
+white static row pitch pitched echo outside outdoors indoors inside concurrent nonstop vocalize vocalization
 work operate function use blow run going
 more most much other another again once twice thrice times time one two three four five series
 small large big little high low heavy heavily light lightly hard hardly fast quick quickly slow
@@ -140,10 +140,10 @@ rev: rev accelerate acceleration
 idle: idle
 move: move drive pass zoom approach travel go fly roll cruise come
 train: train locomotive railroad railway rail subway tram
-aircraft: aircraft airplane plane jet airliner helicopter
+aircraft: aircraft airplane plane jet airliner helicopter propeller
 boat: boat motorboat speedboat ship yacht vessel
-dog: dog puppy pup hound canine bark yap woof yelp
-bark: bark yap woof yelp
+dog: dog puppy pup hound canine bark yap woof yelp yip growl
+bark: bark yap woof yelp yip
 cat: cat kitten kitty meow mew purr
 meow: meow mew
 bird: bird birdsong chirp tweet twitter cheep warble songbird pigeon dove duck goose crow rooster
@@ -155,9 +155,10 @@ rooster: rooster chicken hen cluck crow cockerel
 horse: horse pony neigh whinny clop trot gallop
 sheep: sheep lamb bleat baa
 goat: goat
-pig: pig hog swine oink
+pig: pig hog swine oink boar snort
 cow: cow cattle bull moo
 frog: frog toad croak
+animal: animal dog cat bird horse sheep goat pig cow frog insect
 insect: insect bug bee mosquito cricket cicada swarm
 water: water liquid stream river brook creek flow trickle pour gurgle splash slosh drip faucet sink
   fountain waterfall wave ocean sea surf rain toilet flush
@@ -168,9 +169,9 @@ rain: rain raindrop drizzle downpour
 toilet: toilet flush
 wind: wind breeze gust
 thunder: thunder thunderstorm storm lightning
-fire: fire flame crackle burn
+fire: fire flame burn
 music: music melody tune instrument piano guitar drum violin orchestra band musical
-bell: bell chime ding dong toll
+bell: bell chime ding dong toll ring
 clock: clock tick tock ticktock
 siren: siren emergency ambulance police firetruck
 alarm: alarm
@@ -188,7 +189,7 @@ hiss: hiss steam
 hum: hum drone whir buzz
 beep: beep bleep
 click: click clack clink
-rustle: rustle crinkle crumple
+rustle: rustle crinkle crumple crackle
 scrape: scrape scratch grind rub sand
 squeak: squeak creak
 """
@@ -217,14 +218,17 @@ def _groups() -> dict[str, frozenset[str]]:
 CONCEPTS = _groups()
 NAMED = frozenset(h for heads in CONCEPTS.values() for h in heads)
 # A word outside the table is mostly a modifier or an object ("rhythmic", "wooden",
-# "sleeper"), rarely the sound itself: it counts half as much as a named concept.
+# "sleeper"), rarely the sound itself; a broad term says little on its own ("a man
+# speaks" and "a woman laughs" are both a person): both count half as much.
 UNNAMED_WEIGHT = 0.5
+BROAD = frozenset({"person", "vehicle", "water", "animal"})
 _VOWELS = "aeiou"
 
 
 def weight(concept: str) -> float:
-    """How much a concept counts in the ``lexicon`` similarity: 1 for the table's, less for the rest."""
-    return 1.0 if concept in NAMED else UNNAMED_WEIGHT
+    """How much a concept counts in the ``lexicon`` similarity: 1 for the table's events
+    and sources, half for broad terms and words the table does not name."""
+    return 1.0 if concept in NAMED and concept not in BROAD else UNNAMED_WEIGHT
 
 
 def lemma(word: str) -> str:

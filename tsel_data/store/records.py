@@ -287,7 +287,8 @@ class SceneRecord(_JsonMapping):
         """Every query as true and unambiguous as ``query``: the recorded alternatives
         (other wordings of the same relation, or the captions that pass the dataset's
         own similarity guard), or for records without them the target's captions that
-        pass the word-set guard ``caption_similarity`` against every other source."""
+        pass the word-set and the lexicon guard ``caption_similarity`` against every
+        other source (:func:`~tsel_data.captions.answerable_queries`)."""
         if self.extended:
             return list(self.query_alternatives or ()) or [self.query]
         return answerable_queries(self.sources[0].captions, [s.captions for s in self.sources[1:]],
