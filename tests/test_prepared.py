@@ -203,3 +203,14 @@ def test_a_prepared_clip_without_a_readable_record_is_never_used(tmp_path, recor
             f.write(record)
     np.testing.assert_array_equal(audio.load_clip_cached(p, 24000, 1.0, 0.0), audio.load_clip(p, 24000, 1.0, 0.0))
     assert audio.prepare_clip(p, 24000, 1.0, 0.0)  # made again, with its record
+
+
+def test_a_remembered_clip_check_still_prepares_the_clip(tmp_path, decoded):
+    from tsel_data.catalog import build_catalog, check_clips
+
+    corpus = shutil.copytree(decoded[0], str(tmp_path / "corpus"))
+    cfg = _config(corpus)
+    clips = build_catalog(_config(corpus, "corpus.prepare_on_check=false"), corpus).clips["train"]
+    assert {audio.prepared_state(c.audio, 24000, 2.0, c.offset) for c in clips} == {"absent"}
+    check_clips(clips, cfg)  # the verdicts are remembered from the check above; the prepared forms are made now
+    assert {audio.prepared_state(c.audio, 24000, 2.0, c.offset) for c in clips} == {"ok"}

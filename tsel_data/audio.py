@@ -227,6 +227,16 @@ def wants_preparing(samplerate: int | None, channels: int | None, fs: int) -> bo
     return samplerate != fs or (channels or 1) > 1
 
 
+def prepared_state(path: str, fs: int, duration: float, offset: float) -> str:
+    """``absent``, ``ok`` or ``changed``: a clip's prepared form against its record, at
+    the cost of a ``stat`` (prepared.lookup)."""
+    try:
+        stamp = stamp_of(os.stat(path))
+    except (OSError, ValueError):
+        return "absent"
+    return lookup(path, stamp, fs, duration, offset, read=False)[0]
+
+
 def keep_prepared(path: str, fs: int, duration: float, offset: float, prepare: bool = False, wanted: bool = False,
                   make=None, deep: bool = False) -> str | None:
     """Keep a good clip's prepared form in step with it; None, or what is wrong with it.

@@ -22,7 +22,7 @@ from collections import Counter
 from dataclasses import dataclass, field, replace
 
 from .atomic import write_json, write_lines
-from .audio import ClipCheck, check_clip, keep_prepared, prepare_clip, wants_preparing
+from .audio import ClipCheck, check_clip, keep_prepared, prepare_clip, prepared_state, wants_preparing
 from .clip import Clip
 from .clipcache import ClipCache, file_key, settings_key
 from .config import Config
@@ -473,9 +473,10 @@ def check_clips(clips: list[Clip], cfg: Config, workers: int = 1, progress: bool
         for i, key in enumerate(keys):
             if key is None:
                 out[i] = _check(args[i])  # no such file: found missing at once
-            elif key in known:
-                out[i] = _remembered(clips[i], ClipCheck(clips[i].id, *known[key]), cfg, level, prepare)
-            else:
+            elif key in known and (verdict := _remembered(clips[i], ClipCheck(clips[i].id, *known[key]), cfg, level,
+                                                          prepare)) is not None:
+                out[i] = verdict
+            else:  # unknown, or to be prepared: checked (again), in the pool, its prepared form made from the decode
                 todo.append(i)
         # the whole split counts, those remembered done at once: the bar says what is left
         # (all remembered: the check is instant, no bar)
@@ -502,13 +503,16 @@ def _check(a) -> ClipCheck:
     return check_clip(*a)
 
 
-def _remembered(clip: Clip, verdict: ClipCheck, cfg: Config, level: str, prepare: bool) -> ClipCheck:
-    """A remembered verdict, with the clip's prepared form kept in step (made when the
-    check would have made it; checked as the check would have: audio.keep_prepared)."""
+def _remembered(clip: Clip, verdict: ClipCheck, cfg: Config, level: str, prepare: bool) -> ClipCheck | None:
+    """A remembered verdict, with the clip's prepared form kept in step (checked as the
+    check would have: audio.keep_prepared); None when the check would make the prepared
+    form and it is not there: the clip is checked again, which makes it."""
     if verdict.problem is not None or level != "full":
         return verdict
     fs, duration = cfg.audio.fs, cfg.audio.duration
     wanted = prepare and wants_preparing(verdict.samplerate, verdict.channels, fs)
+    if wanted:
+        return verdict if prepared_state(clip.audio, fs, duration, clip.offset) == "ok" else None
     problem = keep_prepared(clip.audio, fs, duration, clip.offset, prepare, wanted, deep=not prepare)
     return replace(verdict, prepared=problem) if problem else verdict
 
