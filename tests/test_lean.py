@@ -60,9 +60,11 @@ def test_every_command_is_listed_and_found():
     assert cli.get_command(ctx, "no-such-command") is None
 
 
-def test_a_simulated_scene_renders_without_scipy_signal(tmp_path):
+def test_a_simulated_scene_renders_without_scipy_signal_nor_scipy_fft(tmp_path):
     """The shoebox simulator's DC blocker no longer pulls in scipy.signal (only a clip at
-    another rate does, to resample), and its filter runs in scipy's compiled loop."""
+    another rate does, to resample), and its filter runs in scipy's compiled loop; the
+    simulators' real FFTs run in scipy's compiled pocketfft without scipy.fft, scipy.special
+    or scipy's array-API layer."""
     code = f"""
     import numpy as np, soundfile as sf
     from tsel_data.acoustics.highpass import _compiled_loop
@@ -79,6 +81,8 @@ def test_a_simulated_scene_renders_without_scipy_signal(tmp_path):
     import sys
     assert not [m for m in sys.modules if m.startswith("scipy.signal") and m != "scipy.signal._sosfilt"], \\
         sorted(m for m in sys.modules if m.startswith("scipy.signal"))
+    heavy = [m for m in sys.modules if m.startswith(("scipy.fft", "scipy.special", "scipy._lib._array_api"))]
+    assert heavy == ["scipy.fft._pocketfft.pypocketfft"], sorted(m for m in sys.modules if m.startswith("scipy"))
     """
     subprocess.run([sys.executable, "-c", textwrap.dedent(code)], check=True)
 
@@ -110,6 +114,38 @@ def test_sosfilt_is_scipys_bit_for_bit(monkeypatch, compiled):
         got, want = highpass.sosfilt(sos, x), sosfilt(sos, x)
         assert got.dtype == want.dtype and got.shape == want.shape and np.array_equal(got, want)
         assert np.array_equal(x, kept)  # filtered in a copy
+
+
+# --- scipy.fft's real transforms without scipy.fft -------------------------------------
+@pytest.mark.parametrize("compiled", [True, False])
+def test_realfft_is_scipy_fft_bit_for_bit(monkeypatch, compiled):
+    import scipy.fft
+
+    from tsel_data import realfft
+
+    if not compiled:  # another scipy layout: the public functions
+        monkeypatch.setattr(realfft, "_pocketfft", lambda: None)
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 99, 512, 4800, 30870, 100003):
+        assert realfft.next_fast_len(n, real=True) == scipy.fft.next_fast_len(n, real=True)
+        assert realfft.next_fast_len(n) == scipy.fft.next_fast_len(n)
+        assert np.array_equal(realfft.rfftfreq(n, 1 / 24000), scipy.fft.rfftfreq(n, 1 / 24000))
+        for x in (rng.standard_normal((3, n)).astype(np.float32), rng.standard_normal(n),
+                  rng.integers(-5, 5, (2, n)), rng.standard_normal((n, 2)).astype(np.float32)[:, 0]):
+            for m in (None, n + 7, max(1, n // 2), scipy.fft.next_fast_len(n, real=True)):
+                got, want = realfft.rfft(x, m, axis=-1, workers=1), scipy.fft.rfft(x, m, axis=-1, workers=1)
+                assert got.dtype == want.dtype and got.shape == want.shape and np.array_equal(got, want), (n, m)
+                back_n = m or n
+                got, want = realfft.irfft(want, back_n, axis=-1), scipy.fft.irfft(want, back_n, axis=-1)
+                assert got.dtype == want.dtype and got.shape == want.shape and np.array_equal(got, want), (n, m)
+    x = rng.standard_normal((4, 6))
+    assert np.array_equal(realfft.rfft(x, axis=0), scipy.fft.rfft(x, axis=0))
+    assert np.array_equal(realfft.irfft(realfft.rfft(x, axis=0), 4, axis=0), scipy.fft.irfft(scipy.fft.rfft(x, axis=0), 4,
+                                                                                             axis=0))
+    with pytest.raises(ValueError):
+        realfft.rfft(np.zeros(0))
+    with pytest.raises(TypeError):
+        realfft.rfft(np.zeros(4, complex))
 
 
 # --- levels and activity ---------------------------------------------------------------

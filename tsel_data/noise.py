@@ -18,8 +18,8 @@ in dBFS is that RMS per channel. Noise is never a source: no label, no position.
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft as sfft
 
+from . import realfft as sfft  # scipy.fft's numbers without its import
 from .acoustics.capsules import capsule_model
 from .acoustics.late import csd_noise
 from .ambience import omni_energy, read_segment, snr_gain

@@ -23,12 +23,11 @@ noise are drawn from; the omni and FOA tails keep their own closed-form generato
 """
 from __future__ import annotations
 
-import numpy as np
-
 from functools import lru_cache
 
-import scipy.fft as sfft
+import numpy as np
 
+from .. import realfft as sfft  # scipy.fft's numbers without its import
 from ..choices import Baffle, ReceiverModel
 from ..geometry import SOUND_SPEED, array_to_room, foa_gains_of
 from ..receivers import ArrayPose

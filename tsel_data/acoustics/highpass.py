@@ -21,12 +21,9 @@ paid for it to run one second-order high-pass. Here:
 """
 from __future__ import annotations
 
-import importlib.machinery
-import importlib.util
-import os
-from functools import lru_cache
-
 import numpy as np
+
+from ..compiled import scipy_extension
 
 
 def butter2_highpass(cutoff: float, fs: float) -> np.ndarray:
@@ -57,19 +54,7 @@ def sosfilt(sos: np.ndarray, x: np.ndarray) -> np.ndarray:
     return y.reshape(x.shape)
 
 
-@lru_cache(maxsize=1)
 def _compiled_loop():
     """scipy's ``_sosfilt(sos, x, zi)`` (filters the rows of x in place), or None."""
-    import scipy
-
-    base = os.path.join(os.path.dirname(scipy.__file__), "signal", "_sosfilt")
-    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
-        if os.path.isfile(base + suffix):
-            try:
-                spec = importlib.util.spec_from_file_location("scipy.signal._sosfilt", base + suffix)
-                module = importlib.util.module_from_spec(spec)
-                spec.loader.exec_module(module)
-                return module._sosfilt
-            except (ImportError, AttributeError):
-                return None
-    return None
+    module = scipy_extension("signal._sosfilt")
+    return None if module is None else getattr(module, "_sosfilt", None)

@@ -16,7 +16,8 @@ from functools import lru_cache
 from typing import Iterator
 
 import numpy as np
-import scipy.fft as sfft
+
+from .. import realfft as sfft  # scipy.fft's numbers without its import
 
 # Fractional-delay interpolator: a Kaiser-windowed sinc of FD_TAPS taps, tabulated at
 # FD_PHASES + 1 fractional positions and linearly interpolated between them. The

@@ -16,8 +16,8 @@ the envelope varies over hundreds of milliseconds, so it does not alter the cohe
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft as sfft
 
+from .. import realfft as sfft  # scipy.fft's numbers without its import
 from ..geometry import SOUND_SPEED
 
 FOA_DIFFUSE_GAINS = np.array([1.0, 1.0, 1.0, 1.0]) / np.sqrt([1.0, 3.0, 3.0, 3.0])
