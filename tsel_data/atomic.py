@@ -15,7 +15,7 @@ import json
 import os
 from contextlib import contextmanager
 
-from .errors import WriteError, shown_path
+from .errors import WriteError, broken_link, shown_path
 from .jsonable import jsonable
 
 
@@ -199,10 +199,9 @@ def _missing_folder(filename: str, folder: str) -> tuple[str, str] | None:
     for start in (filename, folder):
         p = os.path.abspath(start) if start else ""
         while p and os.path.dirname(p) != p:
-            if os.path.islink(p) and not os.path.exists(p):
-                link = shown_path(p)
-                return (f"{link} is a symbolic link to {shown_path(os.readlink(p))}, which does not exist",
-                        f"create what it points to, or remove the link and run again")
+            link = broken_link(p)
+            if link:
+                return f"{shown_path(p)} {link}", "create what it points to, or remove the link"
             p = os.path.dirname(p)
     if folder and not os.path.isdir(folder):
         return f"the folder {shown_path(folder)} does not exist", "create it or write elsewhere"

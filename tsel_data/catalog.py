@@ -26,7 +26,7 @@ from .audio import ClipCheck, check_clip, keep_prepared, prepare_clip, prepared_
 from .clip import Clip
 from .clipcache import ClipCache, file_key, settings_key
 from .config import Config
-from .errors import AudioError, ConfigError, ManifestError, TselError
+from .errors import AudioError, ConfigError, ManifestError, TselError, broken_link, shown_path
 from .executors import Runner, ordered_pool
 from .manifests import AUDIO_EXTENSIONS, detect_format, read_manifest, split_aliases
 from .progress import bar
@@ -131,6 +131,9 @@ def manifest_path(cfg: Config, split: str, corpus_dir: str) -> str:
     path = path if os.path.isabs(path) else os.path.join(corpus_dir, path)
     if os.path.exists(path):
         return path
+    if broken_link(path):  # it is there, as a link to nowhere: "not found" would send the user looking for it
+        raise ManifestError(f"splits.{split}.manifest: {shown_path(path)} {broken_link(path)}; point the link at "
+                            f"the manifest, or set splits.{split}.manifest to the file itself")
     folder = os.path.dirname(os.path.abspath(path))
     try:
         there = sorted(n for n in os.listdir(folder) if n.lower().endswith(MANIFEST_EXTENSIONS))

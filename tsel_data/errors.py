@@ -107,3 +107,22 @@ def tidy_message(message: str) -> str:
         message = re.sub(_BEFORE + re.escape(root) + r"(?:/(?=[^\s/])|" + _AFTER_FOLDER + ")",
                          lambda m: inside if m.group(0).endswith("/") else shown, message)
     return message
+
+
+def broken_link(path: str) -> str | None:
+    """What is wrong when ``path`` is a symbolic link that leads nowhere ("is a symbolic
+    link to x.csv, which does not exist", "is a symbolic link that loops: a -> b -> a"),
+    else None: a message then says that instead of "not found"."""
+    if not os.path.islink(path) or os.path.exists(path):
+        return None
+    chain, p = [path], path
+    while os.path.islink(p) and len(chain) <= 40:
+        p = os.path.join(os.path.dirname(p), os.readlink(p))
+        if any(os.path.abspath(p) == os.path.abspath(q) for q in chain):
+            names = " -> ".join(shown_path(q) for q in [*chain, p])
+            return f"is a symbolic link that loops ({names})"
+        chain.append(p)
+    if len(chain) > 40:
+        return "is a symbolic link through too many others"
+    through = f" (through {', '.join(shown_path(q) for q in chain[1:-1])})" if len(chain) > 2 else ""
+    return f"is a symbolic link to {shown_path(p)}{through}, which does not exist"

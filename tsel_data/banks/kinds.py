@@ -7,7 +7,7 @@ from pathlib import Path
 
 import h5py
 
-from ..errors import BankError
+from ..errors import BankError, broken_link
 from ..h5str import as_str
 from .base import Bank, check_format
 from .native import NativeBank, is_native_bank
@@ -28,11 +28,14 @@ def open_bank(path_or_dir, kind: str = "auto", format: str | None = None, **opti
         paths = [Path(p) for p in path_or_dir]
         for p in paths:
             if not p.exists():
-                raise BankError(f"RIR bank file {p} not found")
+                raise BankError(f"RIR bank file {p} {broken_link(str(p)) or 'not found'}")
+            _regular(p)
         return SofaBank(paths, format=format, **options)
     p = Path(os.path.expanduser(str(path_or_dir)))
     if not p.exists():
-        raise BankError(f"RIR bank {p} not found; give a TAU-SRIR DB directory, a .sofa file or directory, or a bank .h5 file")
+        raise BankError(f"RIR bank {p} {broken_link(str(p)) or 'not found'}; give a TAU-SRIR DB directory, a .sofa "
+                        f"file or directory, or a bank .h5 file")
+    _regular(p)
     if kind == "auto":
         kind = _guess_kind(p)
     if kind == "tau":
@@ -47,6 +50,12 @@ def open_bank(path_or_dir, kind: str = "auto", format: str | None = None, **opti
                             f"(or scene.format = \"{bank.format}\")")
         return bank
     raise BankError(f"{p}: unknown bank kind {kind!r}; expected auto, tau, sofa or native")
+
+
+def _regular(p: Path) -> None:
+    """A bank is a folder or a regular file: reading a pipe would wait for a writer forever."""
+    if not p.is_dir() and not p.is_file():
+        raise BankError(f"RIR bank {p} is not a regular file (a pipe, device or socket); give the bank file itself")
 
 
 def _guess_kind(p: Path) -> str:

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from typing import Callable, ClassVar
 
 from ..atomic import atomic_output, write_json, write_text
-from ..errors import DatasetError, TselError
+from ..errors import DatasetError, TselError, broken_link
 from ..progress import bar
 from ..store.dataset import DatasetDoc, load_dataset_doc
 from ..store.layout import EXPORT_MANIFEST_FILE, Layout
@@ -396,6 +396,8 @@ def _check_places(root: str, out: str, force: bool) -> None:
         raise DatasetError(f"--out {out} is inside the dataset {root}; choose a folder outside it")
     if os.path.isfile(out):
         raise DatasetError(f"--out {out} is a file; choose a folder")
+    if broken_link(out):
+        raise DatasetError(f"--out {out} {broken_link(out)}; create the folder it points to, or choose another --out")
     if Layout(out).is_ours():
         raise DatasetError(f"--out {out} is a dataset; export into a folder of its own")
     refuse_inside(out, force, "--out ")

@@ -106,7 +106,12 @@ class CsvTable:
         self.header = [h.strip().lower() for h in header]
         self.index = {}
         for i, h in enumerate(self.header):
-            self.index.setdefault(h, i)
+            if h and h in self.index:  # read by name, the second would be ignored without a word
+                raise fail(f"{name}:{self.header_line}",
+                           f"column {h!r} appears twice (columns {self.index[h] + 1} and {i + 1})",
+                           "rename or remove one of them (one caption per row, or caption_1, caption_2, ... "
+                           "where the format reads several)")
+            self.index[h] = i
         missing = [c for c in required if c not in self.index]
         if missing:
             raise fail(f"{name}:{self.header_line}",
@@ -132,9 +137,22 @@ class CsvTable:
                                "put double quotes around fields that contain commas")
                 yield line, row
         except csv.Error as e:
-            raise fail(f"{name}:{prev + 1}", f"malformed CSV ({e})",
-                       "quote the whole field if it holds commas, quotes or line breaks, "
-                       "and double the quotes inside (\"\")") from None
+            raise _csv_error(name, prev + 1, reader.line_num, e) from None
+
+
+def _csv_error(name: str, line: int, reached: int, e: csv.Error) -> ManifestError:
+    """The one line for a record the csv module refuses. A field over its size limit is
+    a quote opened and never closed when the record ran on over many lines (the rows
+    after it swallowed), else a field that long (quoting is not the cure)."""
+    if "field larger than field limit" not in str(e):
+        return fail(f"{name}:{line}", f"malformed CSV ({e})", "quote the whole field if it holds commas, quotes or "
+                    "line breaks, and double the quotes inside (\"\")")
+    limit = csv.field_size_limit()
+    if reached - line > 1:
+        return fail(f"{name}:{line}", f"a field runs on over lines {line}-{reached} past {limit:,} characters",
+                    "a quote opened on this line is never closed: close it, or double a quote meant literally (\"\")")
+    return fail(f"{name}:{line}", f"a field holds more than {limit:,} characters",
+                "no caption is that long: shorten it, or check that this column holds what the header says")
 
 
 def base_dir(name: str, audio_dir) -> str:

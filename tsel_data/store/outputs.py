@@ -23,7 +23,7 @@ from contextlib import contextmanager
 
 from ..atomic import write_json
 from ..banks.tau import is_tau_folder
-from ..errors import DatasetError, TselError
+from ..errors import DatasetError, TselError, broken_link
 from .layout import EXPORT_MANIFEST_FILE, Layout
 
 REGISTRY_FILE = ".tsel-outputs.json"
@@ -106,6 +106,9 @@ def _check(shown: str, full: str, force: bool, owner: str) -> list | None:
         raise DatasetError(f"{shown}: {REGISTRY_FILE} lists what tsel wrote in its folder; choose another name")
     refuse_inside(shown, force)
     now = stamp(full)
+    if broken_link(full) and not force:  # "already exists" would send the user looking for a file
+        raise DatasetError(f"{shown} {broken_link(full)}; remove the link, choose another name, or pass --force to "
+                           f"write in its place")
     if os.path.lexists(full) and not force:
         entry = (_registry(os.path.dirname(full)) or {}).get(os.path.basename(full)) or {}
         if not entry:
