@@ -272,3 +272,22 @@ def test_hrtf_can_be_built_in_memory():
     assert np.allclose(np.linalg.norm(h.directions, axis=1), 1) and h.irs.dtype == np.float32
     with pytest.raises(ValueError, match="irs has shape"):
         Hrtf(fs=16000, directions=u, irs=np.zeros((3, 2, 8)), lead=0, source="", name="bad")
+
+
+def test_a_sofa_file_written_by_sofar_reads_the_same(tmp_path, ref):
+    """The reader against the SOFA reference implementation's writer (sofar, the test
+    extra): the same HRIRs and directions as the netCDF4-written fixture."""
+    sofar = pytest.importorskip("sofar")
+    sofa = sofar.Sofa("SimpleFreeFieldHRIR")
+    sofa.Data_SamplingRate = 48000.0
+    az, el, _ = cart_to_sph(grid_directions())
+    sofa.SourcePosition = np.stack([az, el, np.full(len(az), 1.2)], axis=1)
+    sofa.SourcePosition_Type, sofa.SourcePosition_Units = "spherical", "degree, degree, metre"
+    sofa.Data_IR = spherical_head_hrirs(grid_directions(), fs=48000)
+    sofa.GLOBAL_ListenerShortName = "sphere"
+    path = tmp_path / "sofar.sofa"
+    sofar.write_sofa(str(path), sofa, compression=0)
+    got = read_hrtf(path)
+    assert got.fs == ref.fs and got.name == "sphere" and got.lead == ref.lead
+    assert np.allclose(got.directions, ref.directions, atol=1e-12)
+    assert np.array_equal(got.irs, ref.irs)
