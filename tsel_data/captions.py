@@ -24,6 +24,7 @@ query caption lies in a band (see :meth:`CaptionIndex.sample`).
 """
 from __future__ import annotations
 
+import functools
 import re
 
 import numpy as np
@@ -75,7 +76,13 @@ def concept_similarity(a: frozenset, b: frozenset) -> float:
     if not a or not b:
         return 0.0
     dot = sum(weight(c) ** 2 for c in a & b)
-    return float(np.sqrt(dot / np.sqrt(sum(weight(c) ** 2 for c in a) * sum(weight(c) ** 2 for c in b))))
+    return float(np.sqrt(dot / np.sqrt(_norm2(a) * _norm2(b))))
+
+
+@functools.lru_cache(maxsize=1 << 17)
+def _norm2(concept_set: frozenset) -> float:
+    # the planner compares one query with many clips: each set's norm is summed once
+    return sum(weight(c) ** 2 for c in concept_set)
 
 
 def caption_sets(caption: str, measure: str) -> frozenset[str]:
