@@ -198,6 +198,8 @@ def test_old_records_read_as_captions_with_random_pairing(small_config, tmp_path
 @pytest.mark.parametrize("overrides, message", [
     (['scene.relations=["loudest", "prettiest"]'], "scene.relations .*unknown 'prettiest'"),
     (['scene.similarity="embeddings"'], "needs corpus.caption_embeddings"),
+    (['scene.similarity="none"', 'scene.pairing="hard"'], "with scene.pairing = 'hard', clips are drawn by caption similarity"),
+    (['scene.similarity="none"', "scene.same_kind_distractors=0.2"], "with same-kind distractors, clips are drawn"),
     (['corpus.caption_embeddings="x.npz"'], "set scene.similarity = \"embeddings\""),
     (['scene.pairing="hard"', "scene.hard_similarity=0.6"], "hard_similarity 0.6 must be below"),
     (["scene.same_kind_distractors=0.5", "scene.same_kind_similarity=0.4"], "must be above"),

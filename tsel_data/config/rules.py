@@ -292,10 +292,15 @@ def _query_problems(cfg: Config, where: str) -> list[ConfigError]:
     if ob is not None and ob[1] >= cfg.audio.duration:
         out.append(ConfigError(f"{where}: scene.onset can reach {ob[1]} s, but scenes last audio.duration = "
                                f"{cfg.audio.duration} s; a source must start before the scene ends"))
+    if sc.similarity == SimilarityMeasure.NONE and (sc.pairing != Pairing.RANDOM or same_kind):
+        what = f"scene.pairing = {str(sc.pairing)!r}" if sc.pairing != Pairing.RANDOM else "same-kind distractors"
+        out.append(ConfigError(f"{where}: with {what}, clips are drawn by caption similarity, but "
+                               f"scene.similarity = \"none\" measures none; choose \"lexicon\" (the default) or "
+                               f"another measure"))
     emb = cfg.corpus.caption_embeddings
     if sc.similarity == SimilarityMeasure.EMBEDDINGS and not emb:
         out.append(ConfigError(f"{where}: scene.similarity = \"embeddings\" needs corpus.caption_embeddings = "
-                               f"FILE.npz (write one with `tsel corpus embed`), or use \"tfidf\""))
+                               f"FILE.npz (write one with `tsel corpus embed`), or use \"lexicon\""))
     if emb and sc.similarity != SimilarityMeasure.EMBEDDINGS:
         out.append(ConfigError(f"{where}: corpus.caption_embeddings is set but scene.similarity is "
                                f"{sc.similarity!r}; set scene.similarity = \"embeddings\" to use it"))
