@@ -1,6 +1,7 @@
 """Prepared clips (tsel corpus prepare): scenes are bit for bit the same, and made without
 decoding or resampling any clip again."""
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -214,3 +215,19 @@ def test_a_remembered_clip_check_still_prepares_the_clip(tmp_path, decoded):
     assert {audio.prepared_state(c.audio, 24000, 2.0, c.offset) for c in clips} == {"absent"}
     check_clips(clips, cfg)  # the verdicts are remembered from the check above; the prepared forms are made now
     assert {audio.prepared_state(c.audio, 24000, 2.0, c.offset) for c in clips} == {"ok"}
+
+
+def test_planning_says_which_clips_it_keeps_prepared_and_how_not_to(demo_corpus, tmp_path, tsel_cli):
+    """corpus.check = "full" writes prepared clips itself: the user is told how many and
+    where (files written for them), and how to turn it off."""
+    common = ["--preset", "demo", "--corpus-dir", demo_corpus, "--split", "train=4", "--split", "val=0",
+              "--split", "test=0", "--set", "audio.duration=1.0"]
+    code, out, err = tsel_cli.run("plan", *common, "--out", str(tmp_path / "a"))
+    assert code == 0, err
+    line = next(x for x in (out + err).splitlines() if x.startswith("train:"))  # the demo holds 16, 44.1 kHz and stereo clips
+    kept = re.search(r", (\d+) kept prepared for the scenes' rate and channels (\S+) ", line)
+    assert kept and int(kept[1]) >= 1 and kept[2] == os.environ["TSEL_CLIP_CACHE"], line
+    assert "corpus.prepare_on_check = false" in line
+    code, out, err = tsel_cli.run("plan", *common, "--out", str(tmp_path / "b"), "--set",
+                                  "corpus.prepare_on_check=false")
+    assert code == 0 and "clips present" in out + err and "kept prepared" not in out + err

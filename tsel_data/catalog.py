@@ -29,6 +29,7 @@ from .config import Config
 from .errors import AudioError, ConfigError, ManifestError, TselError, broken_link, shown_path
 from .executors import Runner, ordered_pool
 from .manifests import AUDIO_EXTENSIONS, detect_format, read_manifest, split_aliases
+from .prepared import CACHE_ENV
 from .progress import bar
 from .recipe import BUILTIN_DEMO
 
@@ -96,6 +97,10 @@ class CatalogScan:
                 line += f", {c['bad']:,} of them bad"
             if self.left_out.get(split):
                 line += f", {self.left_out[split]:,} left out (recorded below corpus.min_samplerate)"
+            if c.get("prepared"):  # files written into the user's corpus: said, with the way not to
+                where = os.environ.get(CACHE_ENV) or "in .tsel-clips/ beside their audio"
+                line += (f", {c['prepared']:,} kept prepared for the scenes' rate and channels {where} "
+                         f"(corpus.prepare_on_check = false: not)")
             if split in self.hints:
                 line += f"; {self.hints[split]}"
             out.append(line)
@@ -308,8 +313,9 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
             continue
         scan.problems += [ManifestError(m) for m in duplicate_clips(clips, split, seen)]
         scan.problems += [ManifestError(m) for m in caption_problems(clips)]
-        good, missing, n_bad, rates, left_out = [], [], 0, Counter(), 0
+        good, missing, n_bad, rates, left_out, kept = [], [], 0, Counter(), 0, 0
         floor = cfg.corpus.min_samplerate
+        preparing = cfg.corpus.check == "full" and cfg.corpus.prepare_on_check
         for clip, chk in zip(clips, check_clips(clips, cfg, workers, progress, desc=f"check {split}")):
             if chk.problem is None:
                 if chk.prepared:  # the clip is good; what render would refuse is its prepared form
@@ -320,6 +326,7 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
                     continue
                 if rate and rate < cfg.audio.fs:
                     rates[int(rate)] += 1
+                kept += preparing and wants_preparing(rate, chk.channels, cfg.audio.fs)
                 good.append(clip)
                 continue
             bad = BadClip(split, clip.id, clip.origin, chk.problem)
@@ -331,7 +338,7 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
             if cfg.on_bad_clip == "fail":
                 scan.problems.append(bad.error())
         scan.missing[split] = missing
-        scan.counts[split] = {"clips": len(clips), "missing": len(missing), "bad": n_bad}
+        scan.counts[split] = {"clips": len(clips), "missing": len(missing), "bad": n_bad, "prepared": kept}
         scan.rates[split] = dict(sorted(rates.items()))
         scan.left_out[split] = left_out
         if missing and 2 * len(missing) >= len(clips):  # most files absent: probably looked for in the wrong place
