@@ -5,6 +5,7 @@ import click
 
 from ..choices import MissingClipPolicy, values
 from ..errors import TselError
+from . import say
 from .options import (allow_reuse_option, config_options, executor_options, load, manifest_option, roots_options,
                       worker_count)
 
@@ -65,8 +66,9 @@ def _rebuild(release, out_dir, corpus_dir, bank, missing, workers, quiet, force,
 
 def _report(line: str) -> None:
     """Notes from the corpus check (clips present per split, reuse), before any rendering:
-    output, not errors, so stdout (stderr carries the progress bars and errors)."""
-    click.echo(line)
+    output, not errors, so stdout (stderr carries the progress bars and errors); one line
+    each, naming files as error lines do."""
+    click.echo(say(line))
 
 
 @click.command("plan")
