@@ -2,6 +2,7 @@
 
     .venv/bin/python docs/examples.py            # run every example, rewrite the shown outputs (and pictures)
     .venv/bin/python docs/examples.py --check    # run them, report outputs that differ (tests/test_doc_examples.py)
+    .venv/bin/python docs/examples.py --jobs 2   # the page groups two at a time
 
 An example is a fenced ``bash`` or ``python`` block right after a marker line::
 
@@ -46,6 +47,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -54,13 +56,14 @@ REPO = DOCS.parent
 # pages checked together in one sandbox, in this order (a page may read what an earlier
 # one of its group made: eval.md the DCASE export of export.md), and what the sandbox
 # starts with: "dataset" (a copy of the base) or "corpus" (the demo corpus alone).
-# Groups are independent of each other: the tests run them side by side
+# Groups are independent of each other: the tests run them side by side (the corpus group
+# first, so a second pytest worker has work while the first makes the base)
 GROUPS = {
+    "build": ("corpus", ["config.md", "scaling.md", "acoustics.md", "banks.md", "queries.md"]),
     "generate": ("dataset", ["commands/generate.md"]),
     "read": ("dataset", ["commands/check.md", "commands/inspect.md", "commands/stats.md", "reader.md", "format.md"]),
     "verify": ("dataset", ["commands/verify.md", "baseline.md"]),
     "export": ("dataset", ["commands/export.md", "commands/eval.md"]),
-    "build": ("corpus", ["config.md", "scaling.md", "acoustics.md", "banks.md", "queries.md"]),
 }
 PAGES = [page for _, pages in GROUPS.values() for page in pages]
 # the example every sandbox starts from: generate.md's first, the demo dataset others read
@@ -298,22 +301,22 @@ def build_base(root: Path) -> None:
     (root / "base-output.txt").write_text(out, encoding="utf-8")
 
 
-def run_pages(pages=PAGES, check: bool = False, base: Path | None = None) -> list[str]:
+def run_pages(pages=PAGES, check: bool = False, base: Path | None = None, jobs: int = 1) -> list[str]:
     """Run every example of ``pages`` (with the pages of their groups before them) in new
     sandboxes; rewrite the pages' shown outputs (or, with ``check``, return one message per
     output that differs).
 
-    ``base``: a folder :func:`build_base` made (made here, and removed, if not given)."""
+    ``base``: a folder :func:`build_base` made (made here, and removed, if not given);
+    ``jobs``: groups run at once (each writes its own pages and pictures)."""
     groups = [g for g, (_, members) in GROUPS.items() if set(members) & set(pages)]
     own = base is None and any(GROUPS[g][0] == "dataset" for g in groups)
     if own:
         base = Path(tempfile.mkdtemp(prefix="tsel-doc-"))
         build_base(base)
     try:
-        stale = []
-        for group in groups:
-            stale += run_group(group, base, [p for p in GROUPS[group][1] if p in pages], check)
-        return stale
+        with ThreadPoolExecutor(max(1, jobs)) as pool:
+            runs = [pool.submit(run_group, g, base, [p for p in GROUPS[g][1] if p in pages], check) for g in groups]
+            return [s for run in runs for s in run.result()]
     finally:
         if own:
             shutil.rmtree(base, ignore_errors=True)
@@ -489,9 +492,10 @@ def main(argv=None) -> int:
         return 0
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--check", action="store_true", help="report stale outputs instead of rewriting them")
+    ap.add_argument("--jobs", type=int, default=1, help="page groups to run at once (default: 1)")
     ap.add_argument("pages", nargs="*", help=f"pages to run (default: {', '.join(PAGES)})")
     args = ap.parse_args(argv)
-    stale = run_pages(args.pages or PAGES, check=args.check)
+    stale = run_pages(args.pages or PAGES, check=args.check, jobs=args.jobs)
     for s in stale:
         print(s, end="\n\n")
     print(f"{len(stale)} stale output(s)" if args.check else "outputs rewritten")
