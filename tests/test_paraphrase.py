@@ -108,3 +108,18 @@ def test_default_plans_never_pair_paraphrases_and_random_pairing_can():
     assert paired(words) > 0  # the old guard lets "A man is speaking" ~ "A man is giving a speech" through
     rand = load_config(preset="demo", overrides=["scene.interferers=1", 'scene.similarity="none"'])
     assert paired(rand) > 0
+
+
+def test_a_plan_made_before_the_lexicon_default_still_means_words():
+    from tsel_data.config import config_differences, parse_config
+
+    cfg = load_config(preset="demo")
+    stored = cfg.to_dict()
+    assert stored["scene"]["similarity"] == "lexicon"  # stored from now on, so its absence says "before"
+    old = {**stored, "scene": {k: v for k, v in stored["scene"].items() if k != "similarity"}}
+    assert parse_config(old, stored=True).scene.similarity == "words"
+    assert parse_config(old).scene.similarity == "lexicon"  # a user's config without it: the default
+    diffs = config_differences(old, cfg)
+    assert [(d.key, d.before, d.after) for d in diffs] == [("scene.similarity", "words", "lexicon")]
+    words = load_config(preset="demo", overrides=['scene.similarity="words"'])
+    assert config_differences(old, words) == [] and config_differences(stored, cfg) == []

@@ -37,7 +37,7 @@ from .recipe import SceneRecipe
 from .store.integrity import sha256_file
 from .store.layout import Layout
 from .store.lock import DatasetLock
-from .store.plans import has_plan, local_roots, read_plan_doc
+from .store.plans import has_plan, local_roots, plan_seal, read_plan_doc
 from .store.reader import open_dataset
 from .store.release import REBUILD_FILE, Release, differing_parts, load_release, scene_digest
 from .version import __version__
@@ -86,7 +86,7 @@ def rebuild(release_dir: str, out_dir: str, corpus_dir: str | None = None, bank:
     os.makedirs(layout.plan_dir, exist_ok=True)
     with DatasetLock(layout, exclusive=True, what="rebuild it"):
         config = _config_here(rel, layout, corpus_dir, bank)
-        cfg = parse_config(local_roots(config, layout.root), where=rel.path("plan/config.json"))
+        cfg = parse_config(local_roots(config, layout.root), where=rel.path("plan/config.json"), stored=True)
         corpus = resolve_corpus_dir(cfg, layout.demo_corpus)
         if cfg.room.bank:
             resolve_bank(bank_request(cfg), layout.demo_bank)  # builds the built-in one, checks any other
@@ -210,7 +210,10 @@ def _write_plan(rel: Release, layout: Layout, config: dict, plans: dict) -> None
     folder that already holds this plan (an interrupted rebuild) is resumed as it is."""
     counts = {s: len(lines) for s, lines in plans.items()}
     config = {**config, "splits": {s: {**v, "count": counts.get(s, 0)} for s, v in config["splits"].items()}}
-    doc = {**rel.plan_doc, "config": config}
+    # sealed anew: the config (counts) and the plan files (scenes left out or substituted)
+    # are this rebuild's, not the release's
+    doc = {**rel.plan_doc, "config": config,
+           "seal": plan_seal(config, {s: plans.get(s, []) for s in config["splits"]})}
     if has_plan(layout):
         if read_plan_doc(layout) == json.loads(json.dumps(doc)):
             return

@@ -96,7 +96,7 @@ def open_plan(out_dir: str, corpus_dir: str | None = None, bank: str | None = No
         raw["corpus"] = {**raw.get("corpus", {}), "dir": os.path.abspath(os.path.expanduser(corpus_dir))}
     if bank:
         raw["room"] = {**raw.get("room", {}), "bank": os.path.abspath(os.path.expanduser(bank))}
-    cfg = parse_config(raw, where=layout.config_file)
+    cfg = parse_config(raw, where=layout.config_file, stored=True)
     return Plan(layout, cfg, plan_roots(cfg, layout), plan_shard_tasks(cfg), dataset_attrs(cfg), doc)
 
 

@@ -24,9 +24,9 @@ class Difference:
 def config_differences(stored: dict, cfg: Config, where: str = "stored config") -> list[Difference]:
     """The keys where ``cfg`` differs from ``stored`` (a config as plain data, e.g. from
     ``plan/config.json``), in config order. ``stored`` is parsed first, so a key added to
-    the schema since it was written compares as its default. Raises ConfigError if it
-    does not parse."""
-    before = parse_config(stored, where=where, validate=False).to_dict(every_key=True)
+    the schema since it was written compares as its default (or, for a key whose default
+    changed, as the former one). Raises ConfigError if it does not parse."""
+    before = parse_config(stored, where=where, validate=False, stored=True).to_dict(every_key=True)
     return _diff(before, cfg.to_dict(every_key=True), "")
 
 

@@ -105,8 +105,10 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
     return parse_config(raw, where=Where(base, origins), validate=validate)
 
 
-def parse_config(raw: dict, where: str = "config", validate: bool = True) -> Config:
-    """Raw (TOML-shaped) data -> Config; ``validate`` raises its first problem."""
+def parse_config(raw: dict, where: str = "config", validate: bool = True, stored: bool = False) -> Config:
+    """Raw (TOML-shaped) data -> Config; ``validate`` raises its first problem. ``stored``:
+    ``raw`` is a dataset's own config (``plan/config.json``), in which a key whose default
+    changed and is absent means its ``former`` default, the one it was planned with."""
     check_raw_config(raw, where)
     _check_keys(raw, TOP_KEYS, where, "")
     kw: dict[str, Any] = {}
@@ -115,7 +117,7 @@ def parse_config(raw: dict, where: str = "config", validate: bool = True) -> Con
         if key in raw:
             kw[key] = _parse_value(raw[key], top[key], Config(), where, key)
     for sec, cls in SECTIONS.items():
-        kw[sec] = _parse_section(raw.get(sec, {}), cls, where, sec)
+        kw[sec] = _parse_section(raw.get(sec, {}), cls, where, sec, stored)
     splits = {}
     for name, sraw in (raw.get("splits") or {}).items():
         if not isinstance(sraw, dict):
@@ -227,11 +229,14 @@ def _check_keys(raw: dict, known, where: str, prefix: str) -> None:
             raise ConfigError(f"{at(where, prefix + str(k))}: unknown config key {prefix}{k!r}{hint}")
 
 
-def _parse_section(raw: dict, cls, where: str, sec: str):
+def _parse_section(raw: dict, cls, where: str, sec: str, stored: bool = False):
     _check_keys(raw, [f.name for f in fields(cls)], where, f"{sec}.")
     defaults = cls()
     kw = {f.name: _parse_value(raw[f.name], f, defaults, where, f"{sec}.{f.name}") for f in fields(cls)
           if f.name in raw}
+    if stored:
+        kw.update({f.name: f.metadata["former"] for f in fields(cls)
+                   if f.name not in raw and f.metadata.get("former") is not None})
     return cls(**kw)
 
 

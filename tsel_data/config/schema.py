@@ -20,15 +20,17 @@ from ..receivers import NAMES as RECEIVER_NAMES
 
 
 def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, le=None, lt=None, why: str = "",
-           path: bool = False, many: bool = False, new: bool = False):
+           path: bool = False, many: bool = False, new: bool = False, former=None):
     """A plain field: ``unit`` (shown in docs and messages), ``choices`` (an enumeration),
     ``ge``/``gt``/``le``/``lt`` (bounds), ``why`` (a reason shown when a bound fails),
     ``path`` (resolved against a config file's folder), ``many`` (a string field that also
     takes a list of strings, kept as a tuple), ``new`` (added after format version 1:
     stored in ``plan/config.json`` and ``dataset.json`` only when it differs from the
-    default, so datasets made without it keep their bytes)."""
+    default, so datasets made without it keep their bytes), ``former`` (the default
+    before it changed: the key is then always stored, and a stored config without it,
+    written before, means this value; ``parse_config(..., stored=True)``)."""
     meta = {"doc": doc, "unit": unit, "choices": values(choices) if choices else None, "ge": ge, "gt": gt, "le": le,
-            "lt": lt, "why": why, "path": path, "many": many, "new": new}
+            "lt": lt, "why": why, "path": path, "many": many, "new": new and former is None, "former": former}
     if isinstance(default, (tuple, dict)):
         return field(default_factory=lambda: type(default)(default), metadata=meta)
     return field(default=default, metadata=meta)
@@ -163,7 +165,7 @@ class SceneConfig:
                                         "cosine over the split's captions, word stems), `embeddings` (cosine of "
                                         "`corpus.caption_embeddings`), `none` (no guard: interferers drawn at "
                                         "random, as the paper did); docs/queries.md", choices=SimilarityMeasure,
-                             new=True)
+                             new=True, former="words")
     query: Dist = dist("caption", "what the query is: `caption` (one caption of the target), `relational` (\"the "
                                   "loudest sound\"), `composite` (a caption plus a relation, with a same-kind "
                                   "distractor), or a `choose` of them with weights; relations are decided on the "
