@@ -86,7 +86,7 @@ def rebuild(release_dir: str, out_dir: str, corpus_dir: str | None = None, bank:
     os.makedirs(layout.plan_dir, exist_ok=True)
     with DatasetLock(layout, exclusive=True, what="rebuild it"):
         config = _config_here(rel, layout, corpus_dir, bank)
-        cfg = parse_config(local_roots(config, layout.root), where=rel.path("plan/config.json"))
+        cfg = parse_config(local_roots(config, layout.root), where=rel.path("plan/config.json"), stored=True)
         corpus = resolve_corpus_dir(cfg, layout.demo_corpus)
         if cfg.room.bank:
             resolve_bank(bank_request(cfg), layout.demo_bank)  # builds the built-in one, checks any other
