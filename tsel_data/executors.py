@@ -430,6 +430,7 @@ class _Worker:
 
 def _ordered_worker_init(parent: int, initializer, initargs) -> None:
     _die_with_parent(parent)
+    _let_signals_in()
     if initializer is not None:
         initializer(*initargs)
 
@@ -441,6 +442,8 @@ def ordered_pool(workers: int, initializer: Callable | None = None, initargs: tu
     a normal one (a stop, an error) kills them at once: none plans on for a run that
     stopped, and ``shutdown`` never waits for the queued tasks."""
     ex = ProcessPoolExecutor(workers, initializer=_ordered_worker_init, initargs=(os.getpid(), initializer, initargs))
+    with _signals_held():
+        ex.submit(int)  # its workers start now (forked: all at the first task), with the stop signals held
     try:
         yield ex
     except BaseException:
