@@ -106,8 +106,8 @@ PRELOAD = ["numpy", "scipy.signal", "h5py", "soundfile", "pyroomacoustics", "tqd
                                             "stats", "verify")),
            "tsel_data.pipeline", "tsel_data.shards", "tsel_data.render", "tsel_data.plan", "tsel_data.catalog",
            "tsel_data.preflight", "tsel_data.stats", "tsel_data.inspect", "tsel_data.verify", "tsel_data.evaluate",
-           "tsel_data.evaluate_dcase", "tsel_data.export", "tsel_data.demo", "tsel_data.store.verify",
-           "tsel_data.stems", "tsel_data.reader", "tsel_data.banks"]
+           "tsel_data.evaluate_dcase", "tsel_data.export", "tsel_data.demo", "tsel_data.store.check",
+           "tsel_data.stems", "tsel_data.banks"]
 
 
 @dataclass

@@ -8,7 +8,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from tsel_data.reader import Scene  # noqa: E402
+from tsel_data.store import Scene  # noqa: E402
 
 from tsel_baseline import augment  # noqa: E402
 from tsel_baseline.data import FeatureTable, SceneFeatures, example_list, precompute  # noqa: E402

@@ -8,7 +8,7 @@ from datasetfixture import make_dataset
 from tsel_data.cli.eval import eval_cmd
 from tsel_data.evaluate import PredictionError, evaluate, write_predictions
 from tsel_data.labels import gaussian_target
-from tsel_data.reader import open_dataset
+from tsel_data.store import open_dataset
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ from datasetfixture import make_dataset
 from tsel_data.cli.export import export_cmd
 from tsel_data.errors import DatasetError, TselError
 from tsel_data.export import dcase_rows, export_dcase, read_dcase_csv
-from tsel_data.reader import Scene, open_dataset
+from tsel_data.store import Scene, open_dataset
 
 
 @pytest.fixture(scope="module")

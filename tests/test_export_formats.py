@@ -16,7 +16,7 @@ import soundfile as sf
 from datasetfixture import make_scene
 from tsel_data.atomic import write_json
 from tsel_data.export import export
-from tsel_data.reader import open_dataset
+from tsel_data.store import open_dataset
 from tsel_data.store.dataset import dataset_doc, shard_attrs
 from tsel_data.store.writer import write_shard
 from tsel_data.streaming import SceneStream

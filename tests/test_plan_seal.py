@@ -15,7 +15,7 @@ from tsel_data.errors import DatasetError
 from tsel_data.pipeline import generate, plan_dataset
 from tsel_data.shards import finalize, open_plan, render_shards
 from tsel_data.store import plans as store_plans
-from tsel_data.store.verify import check_dataset
+from tsel_data.store.check import check_dataset
 
 SMALL = ["audio.duration=0.5", "audio.fs=8000", "output.shard_size=2", 'room.rt60=["uniform", 0.15, 0.2]']
 SPLITS = {"train": 4, "val": 0, "test": 2}

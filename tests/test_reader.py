@@ -7,7 +7,7 @@ import pytest
 from datasetfixture import make_dataset
 from tsel_data import labels as L
 from tsel_data.errors import DatasetError
-from tsel_data.reader import list_splits, open_dataset
+from tsel_data.store import list_splits, open_dataset
 
 
 @pytest.fixture(scope="module")

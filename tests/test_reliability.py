@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 from tsel_data.config import check_raw_config
 from tsel_data.preflight import check_config
-from tsel_data.store.verify import check_dataset
+from tsel_data.store.check import check_dataset
 from tsel_data.config import SECTIONS, TOP_KEYS, SplitConfig, load_config, parse_config
 from tsel_data.distributions import KINDS
 from tsel_data.errors import ConfigError, DatasetError, GeometryError

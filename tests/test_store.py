@@ -16,7 +16,7 @@ from tsel_data.pipeline import generate
 from tsel_data.store.codings import INT16_SCALE, decode, encode, to_int16
 from tsel_data.store.dataset import shard_attrs
 from tsel_data.store.reader import open_dataset
-from tsel_data.store.verify import check_dataset
+from tsel_data.store.check import check_dataset
 from tsel_data.store.writer import ShardWriter
 
 

@@ -19,7 +19,7 @@ from tsel_data.store.integrity import sha256_file
 from tsel_data.store.lock import DatasetLock
 from tsel_data.store.layout import Layout
 from tsel_data.store.reader import open_dataset
-from tsel_data.store.verify import check_dataset
+from tsel_data.store.check import check_dataset
 
 SMALL = ["audio.duration=1.0", "output.shard_size=2", 'room.rt60=["uniform", 0.2, 0.3]']
 SPLITS = {"train": 4, "val": 0, "test": 2}

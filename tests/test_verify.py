@@ -29,7 +29,7 @@ def test_good_data_passes_and_rotated_labels_are_flagged(tmp_path, fmt):
 
 def _scene(tmp_path, fmt="mic4", seed=1):
     make_dataset(tmp_path, fmt=fmt, splits={"train": 1}, seed=seed)
-    from tsel_data.reader import open_dataset
+    from tsel_data.store import open_dataset
 
     return open_dataset(tmp_path, "train")[0]
 

@@ -3,7 +3,7 @@
 Three layers, each usable alone:
 
 1. :class:`SceneFeatures` — a torch ``Dataset`` over *any* scene source (an object with
-   ``__len__`` and ``__getitem__`` returning :class:`tsel_data.reader.Scene`: an offline
+   ``__len__`` and ``__getitem__`` returning :class:`tsel_data.store.Scene`: an offline
    ``tsel_data.open_dataset(...)`` split today, an on-the-fly renderer later). Each item
    is one scene's features and labels as numpy arrays. Picklable, so feature
    extraction runs in ``DataLoader`` workers.

@@ -26,7 +26,7 @@ from collections import defaultdict
 import numpy as np
 
 import tsel_data
-from tsel_data.reader import list_splits
+from tsel_data.store import list_splits
 
 
 def clip_kinds(corpus: str) -> dict:

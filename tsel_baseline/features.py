@@ -205,7 +205,7 @@ def xspec_features(spec: np.ndarray, fb: np.ndarray, pool: np.ndarray) -> np.nda
 
 
 def scene_features(scene, cfg: FeatureConfig = FeatureConfig()) -> dict:
-    """Features of one :class:`tsel_data.reader.Scene` (needs its audio).
+    """Features of one :class:`tsel_data.store.Scene` (needs its audio).
 
     Returns ``{"mel": [F, n_mels]}`` and the spatial features of ``cfg.spatial``:
     ``"gcc"`` [P, F, L] and/or ``"xspec"`` [P, F, B, 2] for microphone arrays,

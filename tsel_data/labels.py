@@ -72,7 +72,7 @@ def decode_accdoa(v, threshold: float = 0.5):
 
 
 def scene_targets(scene, sigma: float = 5.0) -> dict:
-    """Every encoding of a :class:`~tsel_data.reader.Scene`'s target (source 0), per frame.
+    """Every encoding of a :class:`~tsel_data.store.Scene`'s target (source 0), per frame.
 
     Returns ``class_index`` int64 [F], ``gaussian`` float32 [F, 360], ``accdoa``
     float32 [S, F, 3] (all sources), ``active`` bool [F] (the target's).

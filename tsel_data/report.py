@@ -1,5 +1,5 @@
 """What a check found: the report ``tsel check`` prints, for a config (preflight.py)
-and for a written dataset (store/verify.py).
+and for a written dataset (store/check.py).
 
 Checks collect every problem instead of stopping at the first, so a user sees all of
 them at once; ``report.raise_for_errors()`` turns the first into its TselError.
