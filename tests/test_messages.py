@@ -233,6 +233,10 @@ def test_a_column_given_twice_is_refused(tsel_cli, tmp_path, monkeypatch):
                                       + "\n")
     line = tsel_cli.refused("check", *_config(tmp_path, corpus))
     assert "train.csv:1: column 'caption' appears twice (columns 4 and 5)" in line, line
+    jsonl = tmp_path / "m.jsonl"  # JSON keeps the last of two keys without a word
+    jsonl.write_text('{"path": "corpus/audio/clip0.wav", "caption": "a dog", "caption": "a cat", "split": "train"}\n')
+    line = tsel_cli.refused("check", "--preset", "demo", "--manifest", jsonl, "--no-plan")
+    assert "m.jsonl:1: key 'caption' appears twice in one object" in line, line
 
 
 # --- §5: never a hang, one line whatever a name holds ---------------------------------------------------

@@ -75,6 +75,25 @@ def read_text(name: str) -> str:
                    "`iconv -f latin1 -t utf-8 IN > OUT`") from None
 
 
+class DuplicateKey(ValueError):
+    """A JSON object of a manifest names a key twice (json keeps the last one silently)."""
+
+
+def unique_keys(pairs: list) -> dict:
+    """``object_pairs_hook`` for manifests: a key given twice (``"caption"`` twice) is
+    refused, not read as one of its values."""
+    obj = dict(pairs)
+    if len(obj) != len(pairs):
+        seen: set = set()
+        raise DuplicateKey(next(k for k, _ in pairs if k in seen or seen.add(k)))
+    return obj
+
+
+def duplicate_key(where: str, e: DuplicateKey) -> ManifestError:
+    return fail(where, f"key {e.args[0]!r} appears twice in one object", "remove one of them (several captions go "
+                "in one list: \"captions\": [...])")
+
+
 def empty_error(name: str, what: str = "no clips") -> ManifestError:
     return fail(name, f"{what} (the manifest is empty)",
                 "add at least one row, or check that this is the right file")

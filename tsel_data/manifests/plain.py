@@ -10,8 +10,8 @@ import json
 import os
 
 from ..clip import Clip
-from ._common import (CsvTable, base_dir, empty_error, fail, gc_paused, manifest_name,
-                      read_text, resolve)
+from ._common import (CsvTable, DuplicateKey, base_dir, duplicate_key, empty_error, fail, gc_paused, manifest_name,
+                      read_text, resolve, unique_keys)
 
 JSONL_EXTENSIONS = (".jsonl", ".ndjson")
 
@@ -43,7 +43,9 @@ def _jsonl_records(name: str, text: str):
             continue
         where = f"{name}:{line}"
         try:
-            obj = json.loads(s)
+            obj = json.loads(s, object_pairs_hook=unique_keys)
+        except DuplicateKey as e:
+            raise duplicate_key(where, e) from None
         except json.JSONDecodeError as e:
             raise fail(where, f"line is not valid JSON ({e.msg} at column {e.colno})",
                        "write one JSON object per line") from None

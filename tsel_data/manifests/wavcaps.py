@@ -22,8 +22,8 @@ import math
 import os
 
 from ..clip import Clip
-from ._common import (FileIndex, base_dir, check_template, empty_error, fail, first_file, gc_paused, manifest_name,
-                      read_text, resolve, strip_audio_ext, template_list)
+from ._common import (DuplicateKey, FileIndex, base_dir, check_template, duplicate_key, empty_error, fail, first_file,
+                      gc_paused, manifest_name, read_text, resolve, strip_audio_ext, template_list, unique_keys)
 
 TEMPLATE_FIELDS = ("id", "raw_id")
 _PLACEHOLDERS = {"wav_path", "flac_path", "audio_path", "path", "none", "null"}
@@ -89,7 +89,9 @@ def read_wavcaps(path, audio_dir=None, template="{id}.flac",
         check_template(name, t, TEMPLATE_FIELDS)
     text = read_text(name)
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, object_pairs_hook=unique_keys)
+    except DuplicateKey as e:
+        raise duplicate_key(name, e) from None
     except json.JSONDecodeError as e:
         raise fail(f"{name}:{e.lineno}", f"not valid JSON ({e.msg} at line {e.lineno} "
                    f"column {e.colno})", "fix the JSON syntax") from None
