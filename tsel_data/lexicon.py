@@ -168,6 +168,7 @@ ocean: ocean sea wave surf tide
 rain: rain raindrop drizzle downpour
 toilet: toilet flush
 wind: wind breeze gust
+microphone: microphone mic
 thunder: thunder thunderstorm storm lightning
 fire: fire flame burn
 music: music melody tune instrument piano guitar drum violin orchestra band musical
