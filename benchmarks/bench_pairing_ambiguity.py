@@ -91,6 +91,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="plans per measure; the fastest is shown")
     args = ap.parse_args()
     measures = args.measures.split(",")
+    if "embeddings" in measures and not args.embeddings:
+        ap.error("--measures embeddings guards with the --embeddings file: give one")
     if "words" not in measures:
         measures.append("words")  # the reference of the time ratio
     runs = {m: plan(args.manifests, args.split, args.scenes, m, args.embeddings, args.repeat) for m in measures}
