@@ -4,10 +4,12 @@ refused command gives exactly one ``error:`` line and exit 2 (``tsel_cli.refused
 import errno
 import json
 import os
+import signal
 import subprocess
 import sys
 import textwrap
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -255,6 +257,36 @@ def test_a_fifo_given_as_bank_is_refused_not_read(tsel_cli, tmp_path):
     finally:
         os.close(os.open(fifo, os.O_RDONLY | os.O_NONBLOCK))  # lets the writer go
         feed.join()
+
+
+def _session(sid: int) -> list[int]:
+    """Processes of session ``sid`` still alive (zombies are not)."""
+    alive = []
+    for name in os.listdir("/proc"):
+        try:
+            fields = open(f"/proc/{name}/stat").read().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if int(fields[3]) == sid and fields[0] != "Z":
+            alive.append(int(name))
+    return alive
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads the process table from /proc")
+def test_sighup_to_render_ends_its_pool_workers(small_config, tmp_path):
+    from tsel_data.pipeline import plan_dataset
+
+    out = str(tmp_path / "ds")
+    plan_dataset(small_config(splits={"train": 16, "val": 0, "test": 0}), out)
+    p = subprocess.Popen([sys.executable, "-m", "tsel_data.cli", "render", out, "--workers", "2", "--quiet"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    while len(_session(p.pid)) < 3 and p.poll() is None:  # the main process and its two workers
+        time.sleep(0.01)
+    workers = [pid for pid in _session(p.pid) if pid != p.pid]
+    os.kill(p.pid, signal.SIGHUP)  # the terminal went away: the main process alone gets it
+    err = p.communicate()[1]
+    assert p.returncode == 129 and "Traceback" not in err, err
+    assert not [w for w in workers if w in _session(p.pid)], "pool workers outlived tsel render"
 
 
 def test_a_name_with_control_characters_prints_on_one_line(tsel_cli, tmp_path, monkeypatch):
