@@ -8,7 +8,8 @@ Plans ``--scenes`` scenes of ``paper-sim-2dir`` from the manifests alone
 every scene as the evidence note does (shared/notes/pairing-evidence.md): the largest
 cosine between the query and any caption of an interferer, with all-MiniLM-L6-v2
 sentence embeddings; a scene is ambiguous at 0.5 or more. Prints per measure the share
-of ambiguous scenes (at 0.5 and 0.6), the time to build the view and to plan (the
+of ambiguous scenes (at 0.5 and 0.6), the share of random candidates the guard turns
+away (2,000 queries against 200 clips each), the time to build the view and to plan (the
 fastest of ``--repeat`` plans: the machine may be shared), and the plan time as a ratio
 of the ``words`` guard's in the same run. ``embeddings`` in ``--measures`` guards with the
 ``--embeddings`` file itself (the judge's own vectors: a reference, not a fair test).
@@ -30,6 +31,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from tsel_data.captions import CaptionIndex, load_embeddings  # noqa: E402
 from tsel_data.config import load_config  # noqa: E402
 from tsel_data.plan import plan_split_json, prepare_views  # noqa: E402
 from tsel_data.store.layout import Layout  # noqa: E402
@@ -38,9 +40,10 @@ THRESHOLDS = (0.5, 0.6)
 
 
 def plan(manifests: str, split: str, scenes: int, measure: str, embeddings: str = "",
-         repeat: int = 1) -> tuple[list[dict], float, float]:
+         repeat: int = 1) -> tuple[list[dict], float, float, float]:
     """Recipes (as dicts) of ``scenes`` scenes under ``measure``, the seconds to build the
-    view and the seconds to plan them (the fastest of ``repeat``)."""
+    view and the seconds to plan them (the fastest of ``repeat``), and the share of random
+    candidates the guard turns away."""
     counts = {"train": 0, "val": 0, "test": 0, split: scenes}
     extra = [f'corpus.caption_embeddings="{os.path.abspath(embeddings)}"'] if measure == "embeddings" else []
     cfg = load_config(preset="paper-sim-2dir", corpus_dir=manifests, splits=counts,
@@ -55,7 +58,17 @@ def plan(manifests: str, split: str, scenes: int, measure: str, embeddings: str 
         t1 = time.perf_counter()
         lines = plan_split_json(cfg, split, view)
         t_plan = min(t_plan, time.perf_counter() - t1)
-    return [json.loads(line) for line in lines], t_view, t_plan
+    return [json.loads(line) for line in lines], t_view, t_plan, turned_away(cfg, view)
+
+
+def turned_away(cfg, view, queries: int = 2000, candidates: int = 200) -> float:
+    """The share of (query caption, random clip) pairs the guard rejects."""
+    ix = CaptionIndex([c.captions for c in view.clips], cfg.scene.similarity,
+                      load_embeddings(cfg.corpus.caption_embeddings) if cfg.scene.similarity == "embeddings" else None)
+    rng = np.random.default_rng(0)
+    caps = rng.integers(ix.n_captions, size=queries)
+    return float(np.mean([np.mean(ix.clip_sims(int(c), rng.integers(ix.n_clips, size=candidates))
+                                  > cfg.scene.caption_similarity) for c in caps]))
 
 
 def judge(recipes: list[dict], vectors) -> np.ndarray:
@@ -101,11 +114,11 @@ def main() -> None:
     print(f"{args.scenes} {args.split} scenes of paper-sim-2dir, judged by all-MiniLM-L6-v2 "
           f"(max cosine of the query to any interferer caption)")
     print(f"{'scene.similarity':<18}" + "".join(f"{'>= ' + str(t):>9}" for t in THRESHOLDS)
-          + f"{'view (s)':>10}{'plan (s)':>10}{'x words':>9}")
-    for m, (recipes, t_view, t_plan) in runs.items():
+          + f"{'turned away':>13}{'view (s)':>10}{'plan (s)':>10}{'x words':>9}")
+    for m, (recipes, t_view, t_plan, away) in runs.items():
         sims = judge(recipes, vectors)
         shares = "".join(f"{100 * np.mean(sims >= t):>8.2f}%" for t in THRESHOLDS)
-        print(f"{m:<18}{shares}{t_view:>10.2f}{t_plan:>10.2f}{t_plan / base:>9.2f}")
+        print(f"{m:<18}{shares}{100 * away:>12.1f}%{t_view:>10.2f}{t_plan:>10.2f}{t_plan / base:>9.2f}")
 
 
 if __name__ == "__main__":
