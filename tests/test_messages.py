@@ -141,6 +141,19 @@ def test_a_full_disk_advises_resume_only_where_the_command_has_it(demo_corpus, d
     assert line.endswith("then run it again: finished shards are kept") and "--resume" not in line, line
 
 
+def test_a_shard_whose_close_fails_is_a_failed_write(dataset, tsel_cli, tmp_path, monkeypatch):
+    pytest.importorskip("pyarrow")
+    from tsel_data.export import hf
+
+    def flush_fails(self):  # pyarrow flushes the last row group on close: the disk fills there
+        raise OSError("Error writing bytes to file. Detail: [errno 28] No space left on device")
+
+    monkeypatch.setattr(hf._ParquetShard, "close", flush_fails)
+    line = tsel_cli.refused("export", "hf", dataset, "--out", tmp_path / "hf", "--quiet")
+    assert "cannot write" in line and "00000.parquet: disk full" in line, line
+    assert not [n for _, _, ns in os.walk(tmp_path / "hf") for n in ns if ".tmp-" in n]
+
+
 def test_libsndfile_system_error_on_a_full_disk_says_disk_full(dataset, tsel_cli, tmp_path, monkeypatch):
     def system_error(*a, **k):
         raise sf.LibsndfileError(2, "Error writing: ")  # libsndfile's SF_ERR_SYSTEM: "System error."

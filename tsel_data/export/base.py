@@ -339,9 +339,9 @@ class Shards:
 
     def close(self) -> None:
         if self._stack is not None:
-            self.current.close()
-            stack, self._stack, self.current = self._stack, None, None
-            stack.close()
+            stack, current, self._stack, self.current = self._stack, self.current, None, None
+            with stack:  # a close that fails (a full disk as a writer flushes) is the file's failed write
+                current.close()
 
     def __enter__(self):
         return self
