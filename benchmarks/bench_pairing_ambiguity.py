@@ -40,14 +40,14 @@ THRESHOLDS = (0.5, 0.6)
 
 
 def plan(manifests: str, split: str, scenes: int, measure: str, embeddings: str = "",
-         repeat: int = 1) -> tuple[list[dict], float, float, float]:
+         repeat: int = 1, sets: tuple = ()) -> tuple[list[dict], float, float, float]:
     """Recipes (as dicts) of ``scenes`` scenes under ``measure``, the seconds to build the
     view and the seconds to plan them (the fastest of ``repeat``), and the share of random
     candidates the guard turns away."""
     counts = {"train": 0, "val": 0, "test": 0, split: scenes}
     extra = [f'corpus.caption_embeddings="{os.path.abspath(embeddings)}"'] if measure == "embeddings" else []
     cfg = load_config(preset="paper-sim-2dir", corpus_dir=manifests, splits=counts,
-                      overrides=['corpus.check="none"', f'scene.similarity="{measure}"', *extra])
+                      overrides=['corpus.check="none"', f'scene.similarity="{measure}"', *extra, *sets])
     t0 = time.perf_counter()
     _, views = prepare_views(cfg, Layout(tempfile.mkdtemp(prefix="tsel-bench-")), progress=False)
     view = views[split]
@@ -102,13 +102,14 @@ def main() -> None:
     ap.add_argument("--embeddings", default="", help="a `tsel corpus embed` .npz (else MiniLM is run here)")
     ap.add_argument("--measures", default="lexicon,words,tfidf,none")
     ap.add_argument("--repeat", type=int, default=3, help="plans per measure; the fastest is shown")
+    ap.add_argument("--set", dest="sets", action="append", default=[], help="a config override, as tsel's --set")
     args = ap.parse_args()
     measures = args.measures.split(",")
     if "embeddings" in measures and not args.embeddings:
         ap.error("--measures embeddings guards with the --embeddings file: give one")
     if "words" not in measures:
         measures.append("words")  # the reference of the time ratio
-    runs = {m: plan(args.manifests, args.split, args.scenes, m, args.embeddings, args.repeat) for m in measures}
+    runs = {m: plan(args.manifests, args.split, args.scenes, m, args.embeddings, args.repeat, tuple(args.sets)) for m in measures}
     vectors = minilm({m: r[0] for m, r in runs.items()}, args.embeddings)
     base = runs["words"][2]
     print(f"{args.scenes} {args.split} scenes of paper-sim-2dir, judged by all-MiniLM-L6-v2 "

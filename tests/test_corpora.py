@@ -173,7 +173,7 @@ def audiocaps_corpus(root: Path, names=NAMINGS, missing=()) -> Path:
             w.writerow(["audiocap_id", "youtube_id", "start_time", "caption"])
             for j in range(n):
                 yt, aid = f"{split[:2]}{j}x", str(1000 + k)
-                w.writerow([aid, yt, "30", f"{WORDS[k % len(WORDS)]} in a {split} take"])
+                w.writerow([aid, yt, "30", WORDS[k % len(WORDS)]])  # no words in common: any two pair
                 name = list(names.values())[k % len(names)].format(yt=yt, aid=aid)
                 if yt not in missing:
                     wav(root / "audio" / name, k)

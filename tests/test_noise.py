@@ -195,7 +195,7 @@ def test_labels_still_agree_with_a_classical_localizer_at_30_db(tmp_path, demo_c
 
     root = _make(tmp_path / "ds", demo_corpus, ['noise.diffuse="pink"', "noise.diffuse_snr=30.0",
                                                 'noise.sensor="snr"', "noise.sensor_level=40.0"],
-                 splits={"train": 0, "val": 0, "test": 12})
+                 splits={"train": 0, "val": 0, "test": 16})
     rep = verify_dataset(root).splits["test"]
     assert rep["tested"] >= 4 and rep["rate"] >= 0.9, rep
 

@@ -338,7 +338,8 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
             if cfg.on_bad_clip == "fail":
                 scan.problems.append(bad.error())
         scan.missing[split] = missing
-        scan.counts[split] = {"clips": len(clips), "missing": len(missing), "bad": n_bad, "prepared": kept}
+        scan.counts[split] = {"clips": len(clips), "missing": len(missing), "bad": n_bad,
+                              **({"prepared": kept} if kept else {})}
         scan.rates[split] = dict(sorted(rates.items()))
         scan.left_out[split] = left_out
         if missing and 2 * len(missing) >= len(clips):  # most files absent: probably looked for in the wrong place
