@@ -216,7 +216,9 @@ class Sandbox:
             (bin_dir / name).write_text(client)
         for name in ("sbatch", "tsel", "doc-python"):
             (bin_dir / name).chmod(0o755)
-        self.env = {**os.environ, "PATH": f"{bin_dir}:{venv}:{os.environ.get('PATH', '')}",
+        # a test session's clip-cache folder is not the user's: prepared clips go beside the audio
+        inherited = {k: v for k, v in os.environ.items() if k != "TSEL_CLIP_CACHE"}
+        self.env = {**inherited, "PATH": f"{bin_dir}:{venv}:{os.environ.get('PATH', '')}",
                     "TSEL_CACHE_DIR": str(root / "cache"), "PYTHONHASHSEED": "0", "COLUMNS": "120",
                     "TMPDIR": str(root / "tmp"),
                     "HF_HOME": str(root / "hf"), "HF_HUB_OFFLINE": "1"}  # datasets caches in the sandbox
