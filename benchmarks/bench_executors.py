@@ -5,9 +5,9 @@
 One ``tsel generate`` of the demo preset (``--scenes`` train scenes of 2 s, shards of 2)
 per executor, each a fresh process into a fresh folder, from one demo corpus synthesised
 before the runs; the executors take turns, so a busy machine slows each alike. Printed
-per executor, median of ``--repeats``: wall seconds, CPU seconds of the command and every
-process it started (user + system, ``RUSAGE_CHILDREN`` of this script), the CPU ratio
-against ``local``, and the processes still alive afterwards that the run started
+per executor, median of ``--repeats``: wall seconds, CPU seconds the machine was busy
+during the run (``/proc/stat``: every process the run started, however re-parented, and
+whatever else ran meanwhile: run it on a quiet machine), the CPU ratio against ``local``, and the processes still alive afterwards that the run started
 (children re-parented away are found by an environment tag each run carries). All three
 write the same shard bytes (checked).
 """
@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import os
-import resource
 import shutil
 import subprocess
 import sys
@@ -28,9 +27,13 @@ ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 EXECUTORS = ("local", "dask-local")
 
 
-def cpu_children() -> float:
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
+def cpu_busy() -> float:
+    """CPU seconds the whole machine has spent busy (user, nice, system, irq) since boot:
+    counts every process a run started, however re-parented (a Dask forkserver's workers
+    are not this script's children to wait for), plus whatever else ran meanwhile."""
+    with open("/proc/stat") as f:
+        user, nice, system, _idle, _iowait, irq, softirq, *_ = (int(v) for v in f.readline().split()[1:])
+    return (user + nice + system + irq + softirq) / os.sysconf("SC_CLK_TCK")
 
 
 def tagged(tag: str) -> list[int]:
@@ -68,9 +71,9 @@ def run(executor: str, corpus: str, out: str, scenes: int, workers: int) -> dict
            "--out", out, "--split", f"train={scenes}", "--split", "val=0", "--split", "test=0",
            "--set", "audio.duration=2.0", "--set", "output.shard_size=2", "--workers", str(workers),
            "--executor", executor, "--quiet", "--allow-reuse"]
-    c0, t0 = cpu_children(), time.perf_counter()
+    c0, t0 = cpu_busy(), time.perf_counter()
     done = subprocess.run(cmd, env=env, capture_output=True, text=True)
-    wall, cpu = time.perf_counter() - t0, cpu_children() - c0
+    wall, cpu = time.perf_counter() - t0, cpu_busy() - c0
     if done.returncode:
         raise SystemExit(f"{executor}: exit {done.returncode}: {done.stderr.strip()[-400:]}")
     time.sleep(1.0)  # a process that is leaving has a moment to go
