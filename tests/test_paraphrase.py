@@ -110,6 +110,28 @@ def test_default_plans_never_pair_paraphrases_and_random_pairing_can():
     assert paired(rand) > 0
 
 
+def test_the_lexicon_guard_holds_an_interferer_to_every_caption_of_the_target():
+    """A clip captioned several times is one sound: the query is one of its captions, but an
+    interferer sharing a sound another caption names is turned away too (words: the query only)."""
+    clips = [Clip(id="t", audio="/nowhere/t.wav", captions=("A bell rings", "A man speaks as a bell rings"),
+                  meta={"youtube_id": "yt"}),
+             Clip(id="m", audio="/nowhere/m.wav", captions=("A man is speaking",), meta={"youtube_id": "ym"}),
+             Clip(id="w", audio="/nowhere/w.wav", captions=("Wind blows",), meta={"youtube_id": "yw"})]
+    view = CatalogView(clips)
+
+    def partners(cfg, n=200):
+        out = set()
+        for i in range(n):
+            r = plan_scene(cfg, "train", i, view)
+            if r.sources[0].clip_id == "t" and r.query == "A bell rings":
+                out.add(r.sources[1].clip_id)
+        return out
+
+    base = ["scene.interferers=1"]
+    assert partners(load_config(preset="demo", overrides=base)) == {"w"}
+    assert partners(load_config(preset="demo", overrides=base + ['scene.similarity="words"'])) == {"m", "w"}
+
+
 def test_a_plan_made_before_the_lexicon_default_still_means_words():
     from tsel_data.config import config_differences, parse_config
 

@@ -156,8 +156,9 @@ class SceneConfig:
                                           "another for the rest (at 40 °/s a 10 s walk goes all the way round)",
                                      unit="fraction", gt=0.0, le=1.0)
     caption_similarity: float = option(0.5, "the ambiguity guard: an interferer is rejected if any of its captions is "
-                                            "more similar than this to the query caption (`similarity`), so the "
-                                            "caption picks out one source", unit="similarity 0-1")
+                                            "more similar than this to the query caption (`similarity`; `lexicon`: "
+                                            "to any caption of the target clip), so the caption picks out one "
+                                            "source", unit="similarity 0-1")
     similarity: str = option("lexicon", "the caption similarity of the guard, pairing and same-kind distractors: "
                                         "`lexicon` (cosine of concept sets: words lemmatised, synonyms and broader "
                                         "terms of sound events joined, so paraphrases meet), `words` (word-set "
