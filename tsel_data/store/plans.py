@@ -17,6 +17,7 @@ from ..receivers import canonical, receiver
 from ..recipe import SceneRecipe, read_plan
 from ..version import __version__
 from .dataset import DatasetDoc, ShardEntry
+from .integrity import sha256_file
 from .layout import CONFIG_FILE, Layout, shard_names
 
 
@@ -81,14 +82,6 @@ def config_digest(config: dict) -> str:
     return hashlib.sha256(json.dumps(rootless, sort_keys=True, separators=(",", ":")).encode("utf-8")).hexdigest()
 
 
-def _file_digest(path: str) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def seal_problem(layout: Layout, doc: dict, splits=None, deep: bool = True) -> str:
     """What no longer matches the plan's seal in ``plan/config.json`` (``doc``): its
     config, or a plan file (of ``splits``, default all; ``deep``: by sha256, else by size
@@ -104,7 +97,7 @@ def seal_problem(layout: Layout, doc: dict, splits=None, deep: bool = True) -> s
         want, path = files.get(split) or {}, layout.plan_file(split)
         try:
             size = os.path.getsize(path)
-            if size != want.get("bytes") or (deep and _file_digest(path) != want.get("sha256")):
+            if size != want.get("bytes") or (deep and sha256_file(path) != want.get("sha256")):
                 return f"{path} was edited after planning (it no longer matches the seal in {CONFIG_FILE})"
         except OSError as e:
             return f"{path}: cannot read ({e.strerror or e})"
