@@ -18,14 +18,10 @@ import numpy as np
 from .compiled import scipy_extension
 
 
-@lru_cache(maxsize=1)
 def _pocketfft():
-    module = scipy_extension("fft._pocketfft.pypocketfft")
-    if module is None:  # another scipy layout: the public functions, the same numbers
-        import scipy.fft  # slow to import: only where the compiled module is not found
-
-        return None
-    return module
+    """scipy's compiled pocketfft, or None in another scipy layout (then each function
+    calls scipy.fft's own: the same numbers, only a slower start)."""
+    return scipy_extension("fft._pocketfft.pypocketfft")
 
 
 def _real(x) -> np.ndarray:
