@@ -4,7 +4,7 @@ import os
 import pytest
 
 from tsel_data.pipeline import finalize, generate, plan_dataset, render_shards
-from tsel_data.store.integrity import sha256_file
+from tsel_data.digest import sha256_file
 
 
 def _digest(d):

@@ -10,7 +10,8 @@ import soundfile as sf
 
 from tsel_data.config import load_config
 from tsel_data.pipeline import generate, render_shards
-from tsel_data.store.integrity import input_stats, sha256_file
+from tsel_data.digest import sha256_file
+from tsel_data.store.integrity import input_stats
 
 
 def _dataset(tmp_path, demo_corpus, mode):

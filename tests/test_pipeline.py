@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tsel_data.pipeline import finalize, generate, render_shards
-from tsel_data.store.integrity import sha256_file
+from tsel_data.digest import sha256_file
 
 
 def _files(d):

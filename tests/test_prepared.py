@@ -14,7 +14,7 @@ from tsel_data import audio, prepared
 from tsel_data.config import load_config
 from tsel_data.errors import AudioError, DatasetError
 from tsel_data.pipeline import generate
-from tsel_data.store.integrity import sha256_file
+from tsel_data.digest import sha256_file
 
 
 def _stereo_44k_corpus(src, dst):

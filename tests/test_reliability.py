@@ -32,7 +32,7 @@ from tsel_data.errors import ConfigError, DatasetError, GeometryError
 from tsel_data.pipeline import finalize, generate, plan_dataset, render_shards
 from tsel_data import atomic
 from tsel_data.store import writer
-from tsel_data.store.integrity import sha256_file
+from tsel_data.digest import sha256_file
 
 BOOT = ("from tsel_data.cli import cli, main\n"
         "if 'check' not in cli.commands:\n"

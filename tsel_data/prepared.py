@@ -35,6 +35,7 @@ import os
 import numpy as np
 
 from .atomic import atomic_output
+from .digest import sha256_file
 
 CACHE_ENV = "TSEL_CLIP_CACHE"
 FOLDER = ".tsel-clips"
@@ -65,11 +66,6 @@ def record_path(prepared: str) -> str:
     return os.path.splitext(prepared)[0] + ".json"
 
 
-def file_sha256(path: str) -> str:
-    with open(path, "rb") as f:
-        return hashlib.file_digest(f, "sha256").hexdigest()
-
-
 def lookup(path: str, stamp: tuple, fs: int, duration: float, offset: float,
            read: bool = True, deep: bool = False) -> tuple[str, np.ndarray | None, str]:
     """(state, samples, why) of a clip's prepared form.
@@ -96,7 +92,7 @@ def lookup(path: str, stamp: tuple, fs: int, duration: float, offset: float,
         return "changed", None, "the clip changed since it was prepared"
     if deep or [src.get("ino"), src.get("ctime_ns")] != list(stamp[2:4]):
         try:
-            same = file_sha256(path) == src.get("sha256")
+            same = sha256_file(path) == src.get("sha256")
         except OSError:
             same = False
         if not same:
@@ -131,7 +127,7 @@ def write_prepared(path: str, stamp: tuple, fs: int, duration: float, offset: fl
     prepared form of the clip, with its record; returns its path, or None when the clip
     changed while it was read (nothing is kept: it would describe neither version)."""
     p = prepared_path(path, stamp, fs, duration, offset)
-    source = file_sha256(path)
+    source = sha256_file(path)
     if stamp_of(os.stat(path)) != tuple(stamp):
         return None
     buf = io.BytesIO()

@@ -34,7 +34,7 @@ from .errors import DatasetError, TselError
 from .pipeline import check_ownership, finalize, render_shards
 from .plan import bank_request
 from .recipe import SceneRecipe
-from .store.integrity import sha256_file
+from .digest import sha256_file
 from .store.layout import Layout
 from .store.lock import DatasetLock
 from .store.plans import has_plan, local_roots, plan_seal, read_plan_doc

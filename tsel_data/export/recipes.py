@@ -11,7 +11,7 @@ import os
 from collections import defaultdict
 
 from ..errors import DatasetError
-from ..store.integrity import sha256_file
+from ..digest import sha256_file
 from ..store.layout import CONFIG_FILE, DATASET_FILE, Layout
 from ..store.plans import local_roots, read_plan_doc, read_plan_lines
 from ..store.release import (CLIPS_FILE, DIGESTS, RELEASE_FILE, RELEASE_KIND, RELEASE_VERSION, checksums_file,

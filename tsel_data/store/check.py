@@ -25,7 +25,7 @@ from .dataset import load_dataset_doc
 from .layout import SEAL_SUFFIX, Layout
 from .plans import config_digest, has_plan, plan_ids, read_plan_doc, seal_problem, shard_sealed, shard_tasks
 from .records import LABEL_ATOL, LABEL_KEYS, SourceRecord
-from .integrity import sha256_file
+from ..digest import sha256_file
 
 
 def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckReport:

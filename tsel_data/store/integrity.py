@@ -19,17 +19,10 @@ import json
 import os
 from dataclasses import dataclass
 
+from ..digest import sha256_file
 from .layout import Layout
 
 SEAL_VERSION = 1
-
-
-def sha256_file(path: str) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def input_stats(inputs, content: bool = False, hashes: dict | None = None) -> list:

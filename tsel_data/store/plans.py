@@ -17,7 +17,7 @@ from ..receivers import canonical, receiver
 from ..recipe import SceneRecipe, read_plan
 from ..version import __version__
 from .dataset import DatasetDoc, ShardEntry
-from .integrity import sha256_file
+from ..digest import sha256_file
 from .layout import CONFIG_FILE, Layout, shard_names
 
 

@@ -22,7 +22,8 @@ from ..jsonable import jsonable
 from ..choices import AudioCoding
 from .codings import create_audio, encode
 from .dataset import FORMAT_VERSION, ShardEntry
-from .integrity import FileSeal, Seal, sha256_file
+from ..digest import sha256_file
+from .integrity import FileSeal, Seal
 from .layout import Layout, shard_names
 from ..receivers import receiver
 from .layout import NOISE_GROUP, RECEIVERS_GROUP
