@@ -46,6 +46,7 @@ class Plan:
     attrs: dict
     doc: dict
     _parts: dict[str, "PlanPart"] = field(default_factory=dict, repr=False)
+    _hashed: set = field(default_factory=set, repr=False)  # splits whose plan file matched its seal by sha256
 
     @property
     def out_dir(self) -> str:
@@ -53,9 +54,9 @@ class Plan:
 
     def recipes(self, tasks: list[ShardTask]) -> list[list[SceneRecipe]]:
         """Each task's recipes, read from the plan files the first time a range is asked for."""
-        need = [t for t in tasks if not self._has(t)]
-        if need:
-            for split, part in load_plan_part(self.layout, self.cfg, need + self._held(need)).items():
+        splits = {t.split for t in tasks if not self._has(t)}
+        if splits:  # the asked tasks of those splits, read as one range each
+            for split, part in load_plan_part(self.layout, self.cfg, [t for t in tasks if t.split in splits]).items():
                 if part.recipes:
                     self._parts[split] = part
         return [self._parts[t.split][t.start:t.stop] for t in tasks]
@@ -63,12 +64,6 @@ class Plan:
     def _has(self, t: ShardTask) -> bool:
         part = self._parts.get(t.split)
         return part is not None and part.offset <= t.start and t.stop <= part.offset + len(part.recipes)
-
-    def _held(self, need: list[ShardTask]) -> list[ShardTask]:
-        """Tasks whose recipes are held already in the splits of ``need``: read again with
-        them, so a split's held range only grows."""
-        splits = {t.split for t in need}
-        return [t for t in self.tasks if t.split in splits and self._has(t)]
 
 
 def open_plan(out_dir: str, corpus_dir: str | None = None, bank: str | None = None) -> Plan:
@@ -117,10 +112,14 @@ def _check_count(layout: Layout, cfg: Config, split: str, have: int) -> None:
 
 def _check_seal(plan: Plan, splits, deep: bool) -> None:
     """Refuse plan files edited since they were planned: their recipes would be rendered
-    under the seal of the plan that was checked."""
+    under the seal of the plan that was checked. A split hashed once for this plan (the
+    render stage of ``generate``) is not hashed again (its finalize)."""
+    splits = [s for s in splits if s not in plan._hashed]
     problem = seal_problem(plan.layout, plan.doc, splits=splits, deep=deep)
     if problem:
         raise DatasetError(f"{problem}; plan again into a new --out, or put the plan back as it was")
+    if deep:
+        plan._hashed.update(splits)
 
 
 def plan_shard_tasks(cfg: Config) -> list[ShardTask]:
