@@ -138,3 +138,17 @@ def test_plan_reports_the_size_and_leaves_the_disk_check_to_generate(cfg, tmp_pa
                        "--split", "train=4", "--split", "val=0", "--split", "test=2",
                        *[a for o in SMALL for a in ("--set", o)])
     assert f"rendered, they take about {pipeline.estimate_bytes(cfg) / 1e9:.2f} GB" in said
+
+
+def test_a_grow_stopped_between_plan_files_and_config_is_named_and_grow_again_mends_it(cfg, copy):
+    from dataclasses import replace
+
+    bigger = replace(cfg, splits={**cfg.splits, "train": replace(cfg.splits["train"], count=6)})
+    plan_dataset(bigger, str(copy) + "-grown-ref", progress=False)  # what the grown plan files hold
+    for split in ("train", "test"):  # the plan files written, plan/config.json not yet: the grow stopped there
+        shutil.copyfile(os.path.join(str(copy) + "-grown-ref", "plan", f"{split}.jsonl"),
+                        os.path.join(copy, "plan", f"{split}.jsonl"))
+    with pytest.raises(DatasetError, match=r"or a --grow stopped before it finished.*--grow` again"):
+        render_shards(copy, progress=False)
+    generate(bigger, copy, workers=1, progress=False, grow=True)
+    assert check_dataset(copy).ok

@@ -117,7 +117,8 @@ def _check_seal(plan: Plan, splits, deep: bool) -> None:
     splits = [s for s in splits if s not in plan._hashed]
     problem = seal_problem(plan.layout, plan.doc, splits=splits, deep=deep)
     if problem:
-        raise DatasetError(f"{problem}; plan again into a new --out, or put the plan back as it was")
+        raise DatasetError(f"{problem}; run the same `tsel generate ... --grow` again if one stopped, else plan "
+                           f"again into a new --out or put the plan back as it was")
     if deep:
         plan._hashed.update(splits)
 

@@ -98,7 +98,9 @@ def seal_problem(layout: Layout, doc: dict, splits=None, deep: bool = True) -> s
         try:
             size = os.path.getsize(path)
             if size != want.get("bytes") or (deep and sha256_file(path) != want.get("sha256")):
-                return f"{path} was edited after planning (it no longer matches the seal in {CONFIG_FILE})"
+                # a --grow writes the plan files first and plan/config.json (the seal) last
+                return (f"{path} was edited after planning, or a --grow stopped before it finished (it no longer "
+                        f"matches the seal in {CONFIG_FILE})")
         except OSError as e:
             return f"{path}: cannot read ({e.strerror or e})"
     return ""
