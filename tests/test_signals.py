@@ -138,10 +138,27 @@ def _sealed(out: str) -> int:
     return sum(f.endswith(".seal.json") for f in os.listdir(d)) if os.path.isdir(d) else 0
 
 
+def _h5_tmps(out: str) -> set[str]:
+    d = os.path.join(out, "train")
+    return {f for f in os.listdir(d) if ".h5.tmp-" in f} if os.path.isdir(d) else set()
+
+
 def _rendering(run: Run, out: str) -> None:
-    """Until a shard was just sealed and both workers run: the worker that sealed it has
-    taken the next shard, so a shard is in flight for most of a shard's time."""
+    """Until a shard was sealed, both workers run, and a shard's file has just appeared: a
+    shard's file appears after its first scene, so that shard has a scene (~0.3 s) to go
+    and is surely in flight when the test's signals come. (A seal alone is not enough: a
+    worker seals before the main process hears of it, and both of a lockstep pair may
+    then finish within the milliseconds between two signals.)"""
     run.until(lambda: len(_children(run.p.pid)) >= 2 and _sealed(out) >= 1, "rendering with 2 workers")
+    seen = _h5_tmps(out)
+
+    def a_new_shard_file() -> bool:
+        now = _h5_tmps(out)
+        new = now - seen
+        seen.update(now)
+        return bool(new)
+
+    run.until(a_new_shard_file, "a shard's file appearing")
 
 
 def _assert_whole(out: str) -> None:
