@@ -37,6 +37,7 @@ from threadpoolctl import threadpool_limits
 
 from .choices import Executor, values
 from .errors import DatasetError, TselError
+from .malloc import reuse_freed_memory
 
 EXECUTORS = values(Executor)
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -57,35 +58,6 @@ def prepare_worker() -> None:
         os.environ[var] = "1"
     threadpool_limits(1)
     reuse_freed_memory()
-
-
-def reuse_freed_memory() -> None:
-    """Ask glibc's malloc to keep freed memory for the next scene instead of handing it
-    back to the kernel.
-
-    A render allocates and frees tens of MB of buffers per scene. By default glibc maps
-    blocks over a threshold afresh and unmaps them on free, so every scene pays page
-    faults on fresh pages (~0.4 ms per MB here): a moving bank scene rendered in 29 ms
-    per source with the default, 24 ms with these settings (benchmarks/bench_banks.py).
-    Blocks up to 32 MB now come from the heap, and up to 256 MB of freed heap is kept.
-    The setting is process-wide and stays after a run in the caller's own process (a
-    serial ``generate``); a no-op where the C library is not glibc.
-    """
-    global _MALLOC_SET
-    if _MALLOC_SET:
-        return
-    _MALLOC_SET = True
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):  # not glibc
-        return
-    M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
-    mallopt(M_MMAP_THRESHOLD, 32 << 20)
-    mallopt(M_TRIM_THRESHOLD, 256 << 20)
-
-
-_MALLOC_SET = False
 
 
 # --- stopping on a signal --------------------------------------------------------------------

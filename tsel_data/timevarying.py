@@ -71,7 +71,7 @@ the rest copying RIRs in and overlap-adding blocks out. Estimating the direct pa
 steps reads a window of each knot (~2 % of a render, less on circles: a six-knot check);
 a warp (sources whose distance changes) costs the Farrow filters (one forward and four
 inverse FFTs over the signal) and one gather: ~+35 % for such a source (docs/acoustics.md). Large arrays are allocated once per call; render
-workers keep freed memory (executors.reuse_freed_memory), since fresh pages cost ~0.4 ms
+workers keep freed memory (malloc.reuse_freed_memory), since fresh pages cost ~0.4 ms
 per MB here.
 """
 from __future__ import annotations
