@@ -92,6 +92,20 @@ def test_streamed_scenes_are_the_readers(datasets_, wds_out, coding):
         assert got[0].audio.shape[0] == 32
 
 
+def test_label_text_is_the_text_json_gives():
+    """Label arrays go into the sample JSON as json.dumps writes them (NaN as null), each
+    distinct value formatted once: -0.0 is not 0.0, and repeats, NaN and infinities keep
+    their places."""
+    from tsel_data.export.webdataset import _labels
+
+    rng = np.random.default_rng(0)
+    cases = [np.array([[0.0, -0.0, np.nan, 1.5, 0.0], [np.inf, -np.inf, 3e-40, 1e30, -0.0]], np.float32),
+             np.repeat(rng.normal(size=(3, 1)), 50, axis=1).astype(np.float32), rng.normal(size=(2, 7)),
+             np.zeros((0, 5), np.float32), np.zeros((3, 0), np.float32), np.float32([1, 2, 3])]
+    for a in cases:
+        assert _labels(a) == json.dumps(a.tolist()).replace("NaN", "null")
+
+
 def test_shards_are_sized_by_bytes_and_indexed(wds_out):
     index = json.loads(open(os.path.join(wds_out["float32"], "index.json")).read())
     shards = index["splits"]["train"]["shards"]

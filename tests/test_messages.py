@@ -154,6 +154,24 @@ def test_a_shard_whose_close_fails_is_a_failed_write(dataset, tsel_cli, tmp_path
     assert not [n for _, _, ns in os.walk(tmp_path / "hf") for n in ns if ".tmp-" in n]
 
 
+def test_a_tar_shard_that_fills_the_disk_is_a_failed_write(dataset, tsel_cli, tmp_path, monkeypatch):
+    from tsel_data.export import webdataset
+
+    calls = {"n": 0}
+    real = os.writev
+
+    def full_at_the_third_scene(fd, parts):  # a tar goes out one scene per writev
+        calls["n"] += 1
+        if calls["n"] >= 3:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(fd, parts)
+
+    monkeypatch.setattr(webdataset.os, "writev", full_at_the_third_scene)
+    line = tsel_cli.refused("export", "webdataset", dataset, "--out", tmp_path / "wds", "--quiet")
+    assert "cannot write" in line and "000000.tar: disk full" in line, line
+    assert not [n for _, _, ns in os.walk(tmp_path / "wds") for n in ns if ".tmp-" in n or n.endswith(".tar")]
+
+
 def test_libsndfile_system_error_on_a_full_disk_says_disk_full(dataset, tsel_cli, tmp_path, monkeypatch):
     def system_error(*a, **k):
         raise sf.LibsndfileError(2, "Error writing: ")  # libsndfile's SF_ERR_SYSTEM: "System error."

@@ -6,7 +6,7 @@ angular separation between the target and the nearest other directional source,
 source distances, room sizes, RT60 requested and measured, levels (target level, TIR,
 peak), the target's active share of frames and mean elevation, what moves and how fast
 (the median great-circle speed of each moving source along its labels), query length in
-words, and the mix of query types, relations and pairings (:func:`query_mix`), and how
+words, and the mix of query types, relations and pairings (:class:`QueryMix`), and how
 many target clips are recorded below the scenes' rate (the only file read: their headers,
 when the corpus is where the plan says). A dataset still being made gives the statistics
 of its finished shards.
@@ -50,27 +50,43 @@ def _mean_az(az, active) -> float | None:
 
 def split_stats(root: str, split: str) -> dict:
     """Statistics of one split (a JSON-friendly dict; ``raw`` holds per-scene values for plots)."""
+    tally = SplitTally(root, split)
     with open_dataset(root, split, unfinished=True) as ds:
-        scenes = list(ds.iter_labels())  # labels only: small
-    raw = {k: [] for k in ("target_az", "target_el", "separation", "target_dist", "interferer_dist", "room_x",
-                           "room_y", "room_z", "volume", "rt60", "rt60_measured", "target_level", "tir", "peak",
-                           "target_active", "query_words", "speed", "moves", "snr")}
-    clip_uses, target_clips = Counter(), Counter()
-    target_audio: dict[str, str] = {}
-    scenarios, motions = Counter(), Counter()
-    moving = 0
-    for sc in scenes:
-        rec = sc.record
-        scenarios[rec.scenario] += 1
-        motions[rec.motion] += 1
-        moving += any(s.moving for s in rec.sources) or rec.motion == "moving"
+        for sc in ds.iter_labels():  # labels only: small
+            tally.add(sc)
+    return tally.result()
+
+
+class SplitTally:
+    """:func:`split_stats` scene by scene, for a caller that reads the scenes anyway (an
+    export writing its card): :meth:`add` each scene of the split (labels and record;
+    the audio is not looked at), then :meth:`result`. Holds per-scene numbers, not scenes."""
+
+    def __init__(self, root: str, split: str):
+        self.root, self.split, self.n, self.moving = root, split, 0, 0
+        self.raw = {k: [] for k in ("target_az", "target_el", "separation", "target_dist", "interferer_dist",
+                                    "room_x", "room_y", "room_z", "volume", "rt60", "rt60_measured",
+                                    "target_level", "tir", "peak", "target_active", "query_words", "speed",
+                                    "moves", "snr")}
+        self.clip_uses, self.target_clips = Counter(), Counter()
+        self.target_audio: dict[str, str] = {}
+        self.scenarios, self.motions = Counter(), Counter()
+        self.queries = QueryMix()
+
+    def add(self, sc) -> None:
+        raw, rec = self.raw, sc.record
+        self.n += 1
+        self.queries.add(rec)
+        self.scenarios[rec.scenario] += 1
+        self.motions[rec.motion] += 1
+        self.moving += any(s.moving for s in rec.sources) or rec.motion == "moving"
         for k, s in enumerate(rec.sources):
             if s.clip_id is not None:
-                clip_uses[s.clip_id] += 1
+                self.clip_uses[s.clip_id] += 1
                 if k == 0:
-                    target_clips[s.clip_id] += 1
+                    self.target_clips[s.clip_id] += 1
                     if s.audio:
-                        target_audio[s.clip_id] = s.audio
+                        self.target_audio[s.clip_id] = s.audio
             if k > 0 and s.tir_db is not None:
                 raw["tir"].append(s.tir_db)
             elif k > 0 and s.power_db is not None and s.level_dbfs is not None:  # levels that follow distance: as heard
@@ -106,40 +122,42 @@ def split_stats(root: str, split: str) -> dict:
         raw["query_words"].append(len(sc.query.split()))
         if rec.noise:
             raw["snr"].append(scene_snr(rec.noise))
-    n = len(scenes)
-    az = np.asarray([a for a in raw["target_az"] if a is not None])
-    hist, _ = np.histogram(az, bins=np.arange(-180, 181, AZ_BIN))
-    pairs = [(r, m) for r, m in zip(raw["rt60"], raw["rt60_measured"]) if r is not None and m is not None]
-    return {
-        "split": split,
-        "scenes": n,
-        "scenarios": dict(scenarios),
-        "motion": dict(motions),
-        "moving_fraction": moving / n if n else float("nan"),
-        "clips": {"used": len(clip_uses), "uses": int(sum(clip_uses.values())),
-                  "reused": sum(1 for c in clip_uses.values() if c > 1),
-                  "max_uses": max(clip_uses.values(), default=0),
-                  "target_clips": len(target_clips),
-                  "target_reused": sum(1 for c in target_clips.values() if c > 1),
-                  "target_band_limited": band_limited_targets(root, target_audio)},
-        "target_azimuth_hist": {"bin_deg": AZ_BIN, "edges_from": -180, "counts": hist.tolist()},
-        "separation_deg": _summ(raw["separation"]),
-        "target_distance_m": _summ(raw["target_dist"]),
-        "interferer_distance_m": _summ(raw["interferer_dist"]),
-        "room_m": {"x": _summ(raw["room_x"]), "y": _summ(raw["room_y"]), "z": _summ(raw["room_z"]),
-                   "volume_m3": _summ(raw["volume"])},
-        "rt60_s": {"requested": _summ(raw["rt60"]), "measured": _summ(raw["rt60_measured"]),
-                   "measured_minus_requested": _summ([m - r for r, m in pairs])},
-        "levels_db": {"target_dbfs": _summ(raw["target_level"]), "tir": _summ(raw["tir"]),
-                      "peak_dbfs": _summ([20 * np.log10(p) for p in raw["peak"] if p]),
-                      "snr": _summ([v for v in raw["snr"] if v is not None])},
-        "target_active_fraction": _summ(raw["target_active"]),
-        "query_words": _summ(raw["query_words"]),
-        "moving_sources": {"scenes": dict(Counter(raw["moves"])), "speed_deg_s": _summ(raw["speed"])},
-        "target_elevation_deg": _summ(raw["target_el"]),
-        "queries": query_mix(sc.record for sc in scenes),
-        "raw": raw,
-    }
+
+    def result(self) -> dict:
+        raw, n, clip_uses, target_clips = self.raw, self.n, self.clip_uses, self.target_clips
+        az = np.asarray([a for a in raw["target_az"] if a is not None])
+        hist, _ = np.histogram(az, bins=np.arange(-180, 181, AZ_BIN))
+        pairs = [(r, m) for r, m in zip(raw["rt60"], raw["rt60_measured"]) if r is not None and m is not None]
+        return {
+            "split": self.split,
+            "scenes": n,
+            "scenarios": dict(self.scenarios),
+            "motion": dict(self.motions),
+            "moving_fraction": self.moving / n if n else float("nan"),
+            "clips": {"used": len(clip_uses), "uses": int(sum(clip_uses.values())),
+                      "reused": sum(1 for c in clip_uses.values() if c > 1),
+                      "max_uses": max(clip_uses.values(), default=0),
+                      "target_clips": len(target_clips),
+                      "target_reused": sum(1 for c in target_clips.values() if c > 1),
+                      "target_band_limited": band_limited_targets(self.root, self.target_audio)},
+            "target_azimuth_hist": {"bin_deg": AZ_BIN, "edges_from": -180, "counts": hist.tolist()},
+            "separation_deg": _summ(raw["separation"]),
+            "target_distance_m": _summ(raw["target_dist"]),
+            "interferer_distance_m": _summ(raw["interferer_dist"]),
+            "room_m": {"x": _summ(raw["room_x"]), "y": _summ(raw["room_y"]), "z": _summ(raw["room_z"]),
+                       "volume_m3": _summ(raw["volume"])},
+            "rt60_s": {"requested": _summ(raw["rt60"]), "measured": _summ(raw["rt60_measured"]),
+                       "measured_minus_requested": _summ([m - r for r, m in pairs])},
+            "levels_db": {"target_dbfs": _summ(raw["target_level"]), "tir": _summ(raw["tir"]),
+                          "peak_dbfs": _summ([20 * np.log10(p) for p in raw["peak"] if p]),
+                          "snr": _summ([v for v in raw["snr"] if v is not None])},
+            "target_active_fraction": _summ(raw["target_active"]),
+            "query_words": _summ(raw["query_words"]),
+            "moving_sources": {"scenes": dict(Counter(raw["moves"])), "speed_deg_s": _summ(raw["speed"])},
+            "target_elevation_deg": _summ(raw["target_el"]),
+            "queries": self.queries.result(),
+            "raw": raw,
+        }
 
 
 def angular_speed(az, el, hop: float) -> float | None:
@@ -152,19 +170,25 @@ def angular_speed(az, el, hop: float) -> float | None:
     if not steps.size:
         return None
     return float(np.degrees(np.median(np.arccos(np.clip(steps, -1.0, 1.0)))) / hop)
-def query_mix(records) -> dict:
+class QueryMix:
     """Counts of query types, relations (``type:relation``), pairings, and of scenes whose
-    query fell back from the type drawn (``wanted->got``; docs/queries.md)."""
-    types, relations, pairings, fallbacks = Counter(), Counter(), Counter(), Counter()
-    for rec in records:
-        types[rec.query_type] += 1
-        pairings[rec.pairing] += 1
+    query fell back from the type drawn (``wanted->got``; docs/queries.md), record by
+    record (:meth:`add`, then :meth:`result`)."""
+
+    def __init__(self):
+        self.types, self.relations, self.pairings, self.fallbacks = Counter(), Counter(), Counter(), Counter()
+
+    def add(self, rec) -> None:
+        self.types[rec.query_type] += 1
+        self.pairings[rec.pairing] += 1
         if rec.query_relation:
-            relations[f"{rec.query_type}:{rec.query_relation}"] += 1
+            self.relations[f"{rec.query_type}:{rec.query_relation}"] += 1
         if rec.query_wanted and rec.query_wanted != rec.query_type:
-            fallbacks[f"{rec.query_wanted}->{rec.query_type}"] += 1
-    return {"types": dict(types), "relations": dict(sorted(relations.items())), "pairing": dict(pairings),
-            "fallbacks": dict(sorted(fallbacks.items()))}
+            self.fallbacks[f"{rec.query_wanted}->{rec.query_type}"] += 1
+
+    def result(self) -> dict:
+        return {"types": dict(self.types), "relations": dict(sorted(self.relations.items())),
+                "pairing": dict(self.pairings), "fallbacks": dict(sorted(self.fallbacks.items()))}
 
 
 def _query_lines(q: dict) -> list[str]:
@@ -204,10 +228,13 @@ def band_limited_targets(root: str, audio: dict[str, str]) -> dict | None:
     return {"clips": int(sum(rates.values())), "rates": dict(sorted(rates.items())), "fs": fs}
 
 
-def dataset_stats(root: str, splits=None) -> dict:
+def dataset_stats(root: str, splits=None, tallied: dict | None = None) -> dict:
     """{split: split_stats} for the given splits (default: all, in dataset.json order); a
-    dataset still being made gives the statistics of its finished shards."""
-    return {s: split_stats(root, s) for s in (list(splits) if splits else list_splits(root, unfinished=True))}
+    dataset still being made gives the statistics of its finished shards. ``tallied``:
+    {split: SplitTally} of splits a caller has read already (they are not read again)."""
+    tallied = tallied or {}
+    return {s: tallied[s].result() if s in tallied else split_stats(root, s)
+            for s in (list(splits) if splits else list_splits(root, unfinished=True))}
 
 
 def _line(name: str, s: dict, unit: str = "", fmt: str = ".2f") -> str:

@@ -37,7 +37,7 @@ from ..progress import bar
 from ..store.dataset import DatasetDoc, load_dataset_doc
 from ..store.layout import EXPORT_MANIFEST_FILE, Layout
 from ..store.outputs import foreign_file, refuse_inside, stamp
-from ..stats import dataset_stats
+from ..stats import SplitTally, dataset_stats
 from ..store.reader import SceneDataset, open_dataset
 from ..version import __version__
 from .card import FIGURE_FILE, CARD_FILE, card_text, draw_figure
@@ -173,10 +173,24 @@ class ExportJob:
         self._shared: list | None = None
         self.summaries = {s: v["summary"] for s, v in ((self.earlier or {}).get("splits") or {}).items()}
         self._split_files = {s: list(v["files"]) for s, v in ((self.earlier or {}).get("splits") or {}).items()}
+        self._tallied: dict = {}  # split -> SplitTally of the scenes a writer read: the card's figures
 
     # --- reading ----------------------------------------------------------------------
     def open(self, split: str) -> SceneDataset:
         return open_dataset(self.root, split, receiver=self.receiver)
+
+    def scenes(self, ds: SceneDataset, audio: bool = True):
+        """Every scene of ``ds`` (a split :meth:`open` gave), in order, ``audio=False``
+        without its audio; read through here, a split's scenes are counted for the
+        card's statistics as they go, and the card does not read them again."""
+        tally = SplitTally(self.root, ds.split) if self.writer.opts.get("card") else None
+        for i in range(len(ds)):
+            scene = ds.get(i, audio=audio)
+            if tally is not None:
+                tally.add(scene)
+            yield scene
+        if tally is not None:
+            self._tallied[ds.split] = tally
 
     def bar(self, total: int, desc: str):
         return bar(total, desc, "scene", self.progress)
@@ -253,7 +267,7 @@ class ExportJob:
         """README.md (and the figure, with the ``figure`` option): the dataset card."""
         files = []
         figure = None
-        stats = dataset_stats(self.root)
+        stats = dataset_stats(self.root, tallied=self._tallied)
         if self.writer.opts.get("figure"):
             with self.output(FIGURE_FILE) as tmp:
                 draw_figure(self.root, tmp, stats)

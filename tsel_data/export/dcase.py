@@ -104,7 +104,7 @@ class DcaseWriter(Writer):
         files, queries, n_rows = [], [], 0
         with job.open(split) as ds:
             b = job.bar(len(ds), f"export {split}")
-            for scene in ds:
+            for scene in job.scenes(ds):
                 name = f"fold{fold}_{scene.scene_id}"
                 peak = float(np.max(np.abs(scene.audio))) if scene.audio.size else 0.0
                 if subtype != "FLOAT" and peak >= 1.0:

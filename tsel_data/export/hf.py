@@ -170,7 +170,7 @@ class HuggingFaceWriter(Writer):
         with job.open(split) as ds, Shards(job, lambda tmp: _ParquetShard(pq.ParquetWriter(tmp, data_schema),
                                                                            flush)) as out:
             b = job.bar(len(ds), f"export {split}")
-            for scene in ds:
+            for scene in job.scenes(ds):
                 item = data_row(scene, self._coding)
                 size = len(item["audio"]["bytes"])
                 if out.current is None or shard_bytes + size > max_bytes:

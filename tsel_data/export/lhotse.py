@@ -96,7 +96,7 @@ class LhotseWriter(Writer):
         files, recs, sups, cuts = [], [], [], []
         with job.open(split) as ds:
             b = job.bar(len(ds), f"export {split}")
-            for scene in ds:
+            for scene in job.scenes(ds):
                 ext, data = file_audio(scene.audio, coding, scene.fs)
                 rel = f"audio/{split}/{scene.scene_id}.{ext}"
                 files.append(job.write_bytes(rel, data))

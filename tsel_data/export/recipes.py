@@ -58,7 +58,7 @@ class RecipesWriter(Writer):
                 raise DatasetError(f"{job.root}: the plan of {split} and its shards hold different scenes; run "
                                    f"`tsel check {job.root}` and render the dataset again")
             b = job.bar(len(ds), f"checksums {split}")
-            for line, scene in zip(lines, ds):
+            for scene, line in zip(job.scenes(ds), lines):  # scenes first: their end completes the tally
                 rows.append({"scene_id": scene.scene_id, "index": int(scene.index), **scene_digest(scene),
                              "clips": recipe_clips(line)})
                 b.update()
