@@ -106,6 +106,51 @@ def test_label_text_is_the_text_json_gives():
         assert _labels(a) == json.dumps(a.tolist()).replace("NaN", "null")
 
 
+def test_tar_headers_read_as_tarfile_reads_them_and_damage_is_one_line(wds_out, tmp_path):
+    import random
+    import tarfile
+
+    from tsel_data.errors import DatasetError
+    from tsel_data.export.webdataset import iter_members, tar_header
+
+    headers = []
+    for fmt in (tarfile.PAX_FORMAT, tarfile.USTAR_FORMAT, tarfile.GNU_FORMAT):
+        for name in ("a.npy", "x" * 99, "d/" * 60 + "f.json", "é/ü.json", "dir/"):
+            for size in (0, 1, 3840128, 8 ** 11 - 1, 8 ** 12):
+                info = tarfile.TarInfo(name)
+                info.size, info.type = size, tarfile.DIRTYPE if name.endswith("/") else tarfile.REGTYPE
+                try:
+                    buf = info.tobuf(fmt, "utf-8", "surrogateescape")
+                except ValueError:  # too long or too large for the format
+                    continue
+                pos = 0
+                while pos < len(buf):  # the format's own headers first (PAX records, GNU long names)
+                    headers.append(buf[pos:pos + 512])
+                    t = tarfile.TarInfo.frombuf(buf[pos:pos + 512], "utf-8", "surrogateescape")
+                    pos += 512 + (-(-t.size // 512) * 512 if t.type in (tarfile.XHDTYPE, tarfile.GNUTYPE_LONGNAME)
+                                  else 0)
+    assert len(headers) > 60
+    rng = random.Random(0)
+    damaged = []
+    for h in headers * 10:  # one byte changed anywhere: the checksum no longer holds
+        k = rng.randrange(512)
+        damaged.append(h[:k] + bytes([(h[k] + rng.randrange(1, 256)) % 256]) + h[k + 1:])
+    for head in headers + damaged:
+        try:
+            t = tarfile.TarInfo.frombuf(head, "utf-8", "surrogateescape")
+        except tarfile.HeaderError:
+            with pytest.raises(ValueError):
+                tar_header(head)
+        else:
+            assert tar_header(head) == (t.name, t.size, t.type)
+    shard = tmp_path / "damaged.tar"
+    data = bytearray(open(glob.glob(os.path.join(wds_out["float32"], "train", "*.tar"))[0], "rb").read())
+    data[100] ^= 0xFF  # the first header's mode field: its checksum no longer holds
+    shard.write_bytes(bytes(data))
+    with pytest.raises(DatasetError, match=r"damaged.tar: damaged tar header at byte 0 \(bad checksum\); export"):
+        list(iter_members(str(shard)))
+
+
 def test_shards_are_sized_by_bytes_and_indexed(wds_out):
     index = json.loads(open(os.path.join(wds_out["float32"], "index.json")).read())
     shards = index["splits"]["train"]["shards"]

@@ -271,25 +271,69 @@ def iter_members(path: str):
             if len(head) < BLOCK or not head.strip(b"\0"):
                 return
             try:
-                info = tarfile.TarInfo.frombuf(head, "utf-8", "surrogateescape")
-            except tarfile.HeaderError as e:
+                own, size, kind = tar_header(head)
+            except ValueError as e:
                 raise DatasetError(f"{path}: damaged tar header at byte {f.tell() - BLOCK} ({e}); export the "
                                    f"shard again") from None
-            name = pending or info.name
-            if info.isreg() and name.endswith(".npy"):
-                data = read_npy(f, info.size, path)
+            name, regular = pending or own, kind in _REGULAR
+            if regular and name.endswith(".npy"):
+                data = read_npy(f, size, path)
             else:
-                data = f.read(info.size)
-                if len(data) != info.size:
-                    raise DatasetError(f"{path}: ends inside {info.name}; the shard is truncated: export it again")
-            f.seek(-info.size % BLOCK, os.SEEK_CUR)
-            if info.type == tarfile.XHDTYPE:
+                data = f.read(size)
+                if len(data) != size:
+                    raise DatasetError(f"{path}: ends inside {own}; the shard is truncated: export it again")
+            f.seek(-size % BLOCK, os.SEEK_CUR)
+            if kind == tarfile.XHDTYPE:
                 pending = _pax_path(data) or pending
-            elif info.type == tarfile.GNUTYPE_LONGNAME:
+            elif kind == tarfile.GNUTYPE_LONGNAME:
                 pending = data.rstrip(b"\0").decode("utf-8", "surrogateescape")
-            elif info.isreg():
+            elif regular:
                 yield name, data
                 pending = None
+
+
+_REGULAR = frozenset(tarfile.REGULAR_TYPES)
+
+
+def tar_header(head: bytes) -> tuple[str, int, bytes]:
+    """(name, size, type) of a 512-byte tar header, as ``tarfile.TarInfo.frombuf`` gives
+    them (the ustar prefix joined, base-256 sizes, a V7 directory), reading only those:
+    frombuf parses every field, 22 µs a member, a tenth of streaming a scene. ValueError
+    when the checksum or the size is damaged."""
+    unsigned = sum(head) - sum(head[148:156]) + 256  # the checksum field counts as 8 spaces
+    stored = _number(head[148:156])
+    if stored != unsigned and stored != unsigned - 256 * sum(1 for b in head[:148] + head[156:] if b > 127):
+        raise ValueError("bad checksum")  # tarfile accepts the sum of unsigned or of signed bytes
+    kind, name = head[156:157], _text(head[:100])
+    if kind == tarfile.AREGTYPE and name.endswith("/"):
+        kind = tarfile.DIRTYPE
+    if kind == tarfile.DIRTYPE:
+        name = name.rstrip("/")
+    prefix = _text(head[345:500])
+    if prefix and kind not in _GNU_TYPES:
+        name = f"{prefix}/{name}"
+    return name, _number(head[124:136]), kind
+
+
+_GNU_TYPES = frozenset(tarfile.GNU_TYPES)
+
+
+def _text(field: bytes) -> str:
+    end = field.find(b"\0")
+    return (field if end < 0 else field[:end]).decode("utf-8", "surrogateescape")
+
+
+def _number(field: bytes) -> int:
+    """A header number: octal text, or base-256 (GNU, first byte 0o200 or 0o377)."""
+    if field[0] in (0o200, 0o377):
+        n = int.from_bytes(field[1:], "big")
+        return n - (256 ** (len(field) - 1)) if field[0] == 0o377 else n
+    end = field.find(b"\0")
+    text = (field if end < 0 else field[:end]).strip()
+    try:
+        return int(text or b"0", 8)
+    except ValueError:
+        raise ValueError(f"invalid number {field!r}") from None
 
 
 def read_npy(f, size: int, path: str) -> np.ndarray:
