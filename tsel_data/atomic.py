@@ -10,7 +10,6 @@ naming the file; nothing under a final name is ever partial.
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import errno
 import glob
 import json
@@ -19,6 +18,7 @@ from contextlib import contextmanager
 
 from .errors import WriteError, broken_link, shown_path
 from .jsonable import jsonable
+from .libc import libc
 
 
 @contextmanager
@@ -88,19 +88,10 @@ def start_writeback(fd: int, offset: int, nbytes: int) -> None:
     """Start writing ``nbytes`` at ``offset`` of ``fd`` to disk without waiting for it
     (Linux ``sync_file_range``), so that the fsync that ends a long write waits for the
     last part only, the disk busy while the writer works on; a no-op elsewhere."""
-    global _SYNC_FILE_RANGE
-    if _SYNC_FILE_RANGE is None:
-        try:
-            fn = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True).sync_file_range
-            fn.argtypes = (ctypes.c_int, ctypes.c_int64, ctypes.c_int64, ctypes.c_uint)
-            _SYNC_FILE_RANGE = fn
-        except (OSError, AttributeError):  # not Linux's C library
-            _SYNC_FILE_RANGE = False
-    if _SYNC_FILE_RANGE:
-        _SYNC_FILE_RANGE(fd, offset, nbytes, 2)  # SYNC_FILE_RANGE_WRITE; a failure shows at the fsync
-
-
-_SYNC_FILE_RANGE = None
+    fn = getattr(libc(), "sync_file_range", None)  # Linux only
+    if fn is not None:
+        # SYNC_FILE_RANGE_WRITE; a failure shows at the fsync that follows
+        fn(fd, ctypes.c_int64(offset), ctypes.c_int64(nbytes), 2)
 
 
 def _fsync_file(path: str) -> None:

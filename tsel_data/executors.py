@@ -16,8 +16,6 @@ SIGHUP finishes its task, then exits, and the run stops as on a first signal.
 """
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import logging
 import multiprocessing
 import multiprocessing.connection
@@ -37,6 +35,7 @@ from threadpoolctl import threadpool_limits
 
 from .choices import Executor, values
 from .errors import DatasetError, TselError
+from .libc import libc
 from .malloc import reuse_freed_memory
 
 EXECUTORS = values(Executor)
@@ -335,12 +334,11 @@ def _on_worker_signal(signum, frame) -> None:
 def _die_with_parent(parent: int) -> None:
     """Linux: SIGKILL this worker when the main process dies, however it dies (SIGKILL
     included, which no handler sees): a worker never renders on for a run that is gone."""
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-        PR_SET_PDEATHSIG = 1
-        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-    except (OSError, AttributeError):  # not Linux
+    prctl = getattr(libc(), "prctl", None)
+    if prctl is None:  # not Linux
         return
+    PR_SET_PDEATHSIG = 1
+    prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
     if os.getppid() != parent:  # it died before the line above
         os._exit(1)
 

@@ -2,8 +2,7 @@
 workers, streaming readers)."""
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
+from .libc import libc
 
 
 def reuse_freed_memory() -> None:
@@ -24,10 +23,8 @@ def reuse_freed_memory() -> None:
     if _MALLOC_SET:
         return
     _MALLOC_SET = True
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):  # not glibc
+    mallopt = getattr(libc(), "mallopt", None)
+    if mallopt is None:  # not glibc
         return
     M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
     mallopt(M_MMAP_THRESHOLD, 32 << 20)

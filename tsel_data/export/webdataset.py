@@ -134,14 +134,14 @@ class TarWriter:
     small writes was slower here, and its pages read back at half the speed (the stream
     of an export is read from them). Members carry mtime 0: the same scenes, the same bytes."""
 
-    def __init__(self, path: str, sources: dict | None = None, buf: np.ndarray | None = None):
+    def __init__(self, path: str, sources: dict, buf: np.ndarray):
         self.f = open(path, "wb", buffering=0)
         self.bytes = 0
-        self.sources = {} if sources is None else sources  # path -> open descriptor, shared across shards
-        self.buf = np.empty(0, dtype=np.uint8) if buf is None else buf  # shared across shards too
+        self.sources = sources  # path -> open descriptor, shared across shards
+        self.buf = buf  # the largest extent's size, shared across shards too
         self._parts: list = []
         self._pending = 0
-        self._written = self._synced = 0
+        self._synced = 0
 
     def add(self, name: str, chunks) -> None:
         info = tarfile.TarInfo(name)
@@ -171,10 +171,10 @@ class TarWriter:
                 parts.pop(0)
             if parts and n:
                 parts[0] = parts[0][n:]
-        self._written = self.f.tell()
-        if self._written - self._synced >= WRITEBACK_STEP:
-            start_writeback(fd, self._synced, self._written - self._synced)
-            self._synced = self._written
+        written = self.f.tell()
+        if written - self._synced >= WRITEBACK_STEP:
+            start_writeback(fd, self._synced, written - self._synced)
+            self._synced = written
 
     def close(self) -> None:
         self._parts.append(b"\0" * (2 * BLOCK))  # the end-of-archive marker
@@ -222,7 +222,7 @@ def write_tars(job, split: str, coding: str, max_bytes: int, name_of) -> list[di
     shards: list[dict] = []
     extents = audio_extents(job.root, split, job.receiver) if coding != AudioCoding.FLAC else None
     sources: dict = {}
-    buf = np.empty(0, dtype=np.uint8)
+    buf = np.empty(max((e.nbytes for e in extents or ()), default=0), dtype=np.uint8)
     try:
         with job.open(split) as ds, Shards(job, lambda tmp: TarWriter(tmp, sources, buf)) as out:
             names = ds.channel_names

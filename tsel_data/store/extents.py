@@ -60,10 +60,8 @@ def audio_extents(root: str, split: str, receiver: str | None = None) -> list[Ex
 
 def read_extent(extent: Extent, src_fd: int, buf: np.ndarray) -> memoryview:
     """``extent``'s bytes, read from ``src_fd`` (an open descriptor of its file) into the
-    uint8 buffer ``buf`` (grown when too small); a view of ``buf``, valid until the next
-    read into it."""
-    if buf.nbytes < extent.nbytes:
-        buf.resize(extent.nbytes, refcheck=False)
+    uint8 buffer ``buf`` (at least ``extent.nbytes`` long); a view of ``buf``, valid until
+    the next read into it."""
     view = memoryview(buf)[:extent.nbytes]
     done = 0
     while done < extent.nbytes:
