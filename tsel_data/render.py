@@ -53,9 +53,7 @@ def convolve(signals, rirs, n_out: int, out=None) -> np.ndarray:
     if out is None:
         out = np.empty((len(signals), rirs[0].shape[0], n_out), dtype=np.float32)
     for x, h, o in zip(signals, rirs, out):
-        y = render_static(x, h)[:, :n_out]
-        o[:, : y.shape[-1]] = y
-        o[:, y.shape[-1]:] = 0.0
+        render_static(x, h, out=o)
     return out
 
 

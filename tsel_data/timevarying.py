@@ -87,9 +87,12 @@ from .geometry import interpolate_positions  # noqa: F401  (labels use the rende
 _GROUP_BYTES = 2 << 20  # RIR spectra of one group of knots: about one core's L2
 
 
-def render_static(signal, rir) -> np.ndarray:
+def render_static(signal, rir, out: np.ndarray | None = None) -> np.ndarray:
     """Plain convolution, exact: signal [T] * rir [C, L] -> float32 [C, T + L - 1]
-    (rows may be strided: a view into the overlap-add buffer, to save a copy).
+    (rows may be strided: a view into the overlap-add buffer, to save a copy). With
+    ``out`` ([C, K] float32, any K): its first K samples, zeros past T + L - 1, written
+    there, the same numbers (the blocks are overlap-added into it, not into a buffer of
+    their own that is then copied: a pass over the image saved).
 
     Overlap-add of N-point real FFTs (N = 2^15, or the next power of two >= 2L, or one
     transform when the whole output fits), blocks of B = N - L + 1 samples, all blocks and
@@ -104,6 +107,9 @@ def render_static(signal, rir) -> np.ndarray:
     (C, L), T = h.shape, len(x)
     n_out = T + L - 1
     if T == 0:
+        if out is not None:
+            out[...] = 0.0
+            return out
         return np.zeros((C, n_out), dtype=np.float32)
     N = max(1 << 15, 1 << int(np.ceil(np.log2(2 * L))))
     if n_out <= N:
@@ -117,12 +123,45 @@ def render_static(signal, rir) -> np.ndarray:
     hp = np.zeros((C, N), dtype=np.float32)
     hp[:, :L] = h
     y = fft.irfft(fft.rfft(hp)[:, None, :] * fft.rfft(xp)[None], N, overwrite=True)  # [C, nb, N]
+    if out is not None:
+        return _overlap_add_into(y, B, n_out, out)
     if nb == 1:
         return y[:, 0, :n_out]
-    out = np.zeros((C, nb + 1, B), dtype=np.float32)
-    out[:, :nb] += y[:, :, :B]
-    out[:, 1:, : N - B] += y[:, :, B:]
-    return out.reshape(C, -1)[:, :n_out]
+    full = np.zeros((C, nb + 1, B), dtype=np.float32)
+    full[:, :nb] += y[:, :, :B]
+    full[:, 1:, : N - B] += y[:, :, B:]
+    return full.reshape(C, -1)[:, :n_out]
+
+
+def _overlap_add_into(y: np.ndarray, B: int, n_out: int, out: np.ndarray) -> np.ndarray:
+    """The first K = out.shape[-1] samples of the overlap-add of ``y`` [C, nb, N] (blocks
+    B apart, n_out long) into ``out`` [C, K], zeros past n_out: each sample the same float32
+    sums as :func:`render_static`'s zero-filled buffer gives, 0 + head (+ the previous
+    block's tail), so -0.0 becomes 0.0 there too; one block is copied as it is."""
+    _, nb, N = y.shape
+    K = out.shape[-1]
+    keep = min(K, n_out)
+    zero = np.float32(0.0)
+    if nb == 1:
+        out[:, :keep] = y[:, 0, :keep]
+    else:
+        tail = N - B
+        for m in range(nb + 1):
+            a = m * B
+            if a >= keep:
+                break
+            w = min(B, keep - a)
+            if m < nb:
+                np.add(y[:, m, :w], zero, out=out[:, a:a + w])
+                if m:
+                    t = min(tail, w)
+                    out[:, a:a + t] += y[:, m - 1, B:B + t]
+            else:  # past the last block: its tail alone
+                t = min(tail, w)
+                np.add(y[:, m - 1, B:B + t], zero, out=out[:, a:a + t])
+                out[:, a + t:a + w] = 0.0
+    out[:, keep:] = 0.0
+    return out
 
 
 def render_moving(signal, rirs, times, fs: float, *, delays="auto") -> np.ndarray:
