@@ -151,6 +151,49 @@ def test_tar_headers_read_as_tarfile_reads_them_and_damage_is_one_line(wds_out, 
         list(iter_members(str(shard)))
 
 
+def test_tar_headers_written_are_the_ones_tarfile_writes():
+    """A member's header is the bytes tarfile's PAX writer gives (mode 644, mtime 0), for
+    names that fit a ustar block and names that need a PAX record, sizes up to 8 GiB and beyond."""
+    import tarfile
+
+    from tsel_data.export.webdataset import header_block
+
+    for name in ("a", "train-000001.audio.npy", "x" * 100, "x" * 101, "d/" * 60 + "f.json", "é.json",
+                 "s\udc80.json", ""):
+        for size in (0, 1, 511, 512, 3840128, 8 ** 11 - 1, 8 ** 11, 2 ** 40):
+            info = tarfile.TarInfo(name)
+            info.size, info.mode, info.mtime = size, 0o644, 0
+            assert header_block(name, size) == info.tobuf(tarfile.PAX_FORMAT, "utf-8", "surrogateescape"), (name, size)
+
+
+def test_a_damaged_shard_under_an_export_is_one_line_and_leaves_no_tar(tmp_path, monkeypatch):
+    """A shard cut short is named in one line, whether HDF5 sees it on opening or the
+    audio read (on the tar writer's own thread) meets the end of the file; no tar is left."""
+    from tsel_data.errors import TselError
+    from tsel_data.store import extents
+
+    root = write_dataset(tmp_path / "ds", splits={"train": 4})
+    shard = sorted(glob.glob(os.path.join(root, "train", "*.h5")))[-1]
+    real = extents.os.preadv
+    calls = {"n": 0}
+
+    def cut_at_the_third_scene(fd, bufs, offset):
+        calls["n"] += 1
+        return 0 if calls["n"] >= 3 else real(fd, bufs, offset)
+
+    monkeypatch.setattr(extents.os, "preadv", cut_at_the_third_scene)
+    with pytest.raises(TselError, match=r"^/.*/shard-00001\.h5 ends inside a scene's audio \(byte [0-9]+\); the shard is "
+                                         r"damaged: `tsel check` the dataset, render the shard again$"):
+        export("webdataset", root, tmp_path / "wds", card=False)
+    monkeypatch.undo()
+    assert not glob.glob(str(tmp_path / "wds" / "train" / "*"))
+    with open(shard, "r+b") as f:
+        f.truncate(os.path.getsize(shard) - 300_000)
+    with pytest.raises(TselError, match=r"shard-00001\.h5: cannot open shard .*the file is damaged, regenerate it$"):
+        export("webdataset", root, tmp_path / "wds2", card=False)
+    assert not glob.glob(str(tmp_path / "wds2" / "train" / "*"))
+
+
 def test_shards_are_sized_by_bytes_and_indexed(wds_out):
     index = json.loads(open(os.path.join(wds_out["float32"], "index.json")).read())
     shards = index["splits"]["train"]["shards"]

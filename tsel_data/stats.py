@@ -170,6 +170,8 @@ def angular_speed(az, el, hop: float) -> float | None:
     if not steps.size:
         return None
     return float(np.degrees(np.median(np.arccos(np.clip(steps, -1.0, 1.0)))) / hop)
+
+
 class QueryMix:
     """Counts of query types, relations (``type:relation``), pairings, and of scenes whose
     query fell back from the type drawn (``wanted->got``; docs/queries.md), record by

@@ -23,8 +23,10 @@ from __future__ import annotations
 
 import json
 import os
+import queue
 import re
 import tarfile
+import threading
 
 import numpy as np
 
@@ -94,9 +96,19 @@ def sample_json(scene: Scene, coding: str, channel_names) -> dict:
 
 
 def sample_bytes(doc: dict) -> bytes:
-    """The sample's JSON: plain values through json, :class:`_Json` text as it is."""
-    parts = [f"{json.dumps(k)}: {v if isinstance(v, _Json) else json.dumps(v, ensure_ascii=False)}"
-             for k, v in doc.items()]
+    """The sample's JSON: plain values through json (a run of them in one call: a call
+    costs more than its small values), :class:`_Json` text as it is."""
+    parts, run = [], {}
+    for k, v in doc.items():
+        if isinstance(v, _Json):
+            if run:
+                parts.append(json.dumps(run, ensure_ascii=False)[1:-1])
+                run = {}
+            parts.append(f"{json.dumps(k)}: {v}")
+        else:
+            run[k] = v
+    if run:
+        parts.append(json.dumps(run, ensure_ascii=False)[1:-1])
     return ("{" + ", ".join(parts) + "}").encode("utf-8")
 
 
@@ -126,62 +138,112 @@ def member_bytes(chunks) -> int:
 
 
 class TarWriter:
-    """A tar file written member by member: headers from ``tarfile``, the data straight
-    from the arrays, or read from the HDF5 shard into one reused buffer (an
+    """A tar file written member by member: the data straight from the arrays, or read
+    from the HDF5 shard into one reused buffer (an
     :class:`~tsel_data.store.extents.Extent`; tarfile's loop would copy each 4 MB scene
     through Python in 16 kB pieces). A scene's small members go out in one ``writev``
     with the next scene's audio: a kernel file-to-file copy (``copy_file_range``) between
     small writes was slower here, and its pages read back at half the speed (the stream
-    of an export is read from them). Members carry mtime 0: the same scenes, the same bytes."""
+    of an export is read from them). The reads and writes run on a thread of their own
+    (the calls release the GIL), so the next scene's JSON is made while the last one goes
+    to disk; the first error they meet is raised by the next :meth:`add` or by
+    :meth:`close`. Members carry mtime 0: the same scenes, the same bytes."""
 
     def __init__(self, path: str, sources: dict, buf: np.ndarray):
         self.f = open(path, "wb", buffering=0)
         self.bytes = 0
-        self.sources = sources  # path -> open descriptor, shared across shards
+        self.sources = sources  # path -> open descriptor, shared across shards (used by the thread only)
         self.buf = buf  # the largest extent's size, shared across shards too
         self._parts: list = []
         self._pending = 0
         self._synced = 0
+        self._error: BaseException | None = None
+        self._queue: queue.Queue = queue.Queue(maxsize=8)  # bounds what waits: a scene's parts each
+        self._thread = threading.Thread(target=self._run, name="tar-writer", daemon=True)
+        self._thread.start()
 
     def add(self, name: str, chunks) -> None:
-        info = tarfile.TarInfo(name)
-        info.size = sum(len(c) for c in chunks)
-        info.mode, info.mtime = 0o644, 0
-        self._parts.append(info.tobuf(tarfile.PAX_FORMAT, "utf-8", "surrogateescape"))
-        read = False
-        for c in chunks:
-            if isinstance(c, Extent):
-                if c.path not in self.sources:
-                    self.sources[c.path] = os.open(c.path, os.O_RDONLY)
-                c, read = read_extent(c, self.sources[c.path], self.buf), True
-            self._parts.append(c)
-        self._parts.append(b"\0" * (-info.size % BLOCK))
-        self._pending += info.size
-        self.bytes += member_bytes(chunks)
-        if read or self._pending > 1 << 22:  # the buffer is read into again for the next extent
-            self._flush()
+        if self._error is not None:
+            raise self._error
+        size = sum(len(c) for c in chunks)
+        self._parts.append(header_block(name, size))
+        self._parts += chunks
+        self._parts.append(b"\0" * (-size % BLOCK))
+        self._pending += size
+        self.bytes += BLOCK + size + (-size % BLOCK)
+        if any(isinstance(c, Extent) for c in chunks) or self._pending > 1 << 22:
+            self._flush()  # one extent a batch: the buffer is read into again for the next
 
     def _flush(self) -> None:
-        parts, self._parts, self._pending = [memoryview(p).cast("B") for p in self._parts], [], 0
-        fd = self.f.fileno()
-        while parts:
-            n = os.writev(fd, parts[:1024])  # IOV_MAX
-            while parts and n >= len(parts[0]):
-                n -= len(parts[0])
-                parts.pop(0)
-            if parts and n:
-                parts[0] = parts[0][n:]
+        parts, self._parts, self._pending = self._parts, [], 0
+        self._queue.put(parts)
+
+    def _run(self) -> None:
+        while (parts := self._queue.get()) is not None:
+            if self._error is None:  # after an error the rest is dropped: the file is abandoned
+                try:
+                    self._write(parts)
+                except BaseException as e:  # raised again where the caller is
+                    self._error = e
+
+    def _write(self, parts: list) -> None:
+        fd, views = self.f.fileno(), []
+        for p in parts:
+            if isinstance(p, Extent):
+                if p.path not in self.sources:
+                    self.sources[p.path] = os.open(p.path, os.O_RDONLY)
+                p = read_extent(p, self.sources[p.path], self.buf)
+            views.append(memoryview(p).cast("B"))
+        while views:
+            n = os.writev(fd, views[:1024])  # IOV_MAX
+            while views and n >= len(views[0]):
+                n -= len(views[0])
+                views.pop(0)
+            if views and n:
+                views[0] = views[0][n:]
         written = self.f.tell()
         if written - self._synced >= WRITEBACK_STEP:
             start_writeback(fd, self._synced, written - self._synced)
             self._synced = written
 
     def close(self) -> None:
-        self._parts.append(b"\0" * (2 * BLOCK))  # the end-of-archive marker
         try:
-            self._flush()
+            if self._error is None:
+                self._parts.append(b"\0" * (2 * BLOCK))  # the end-of-archive marker
+                self._flush()
         finally:
+            self._queue.put(None)
+            self._thread.join()
             self.f.close()
+        if self._error is not None:
+            raise self._error
+
+
+def _ustar_template() -> bytes:
+    info = tarfile.TarInfo("x")
+    info.mode, info.mtime = 0o644, 0
+    return info.tobuf(tarfile.PAX_FORMAT, "utf-8", "surrogateescape")
+
+
+_TEMPLATE = _ustar_template()
+# the checksum of the fields a member does not change (the checksum's own counts as spaces)
+_FIXED_SUM = sum(_TEMPLATE[100:124]) + sum(_TEMPLATE[136:148]) + 8 * 0x20 + sum(_TEMPLATE[156:])
+
+
+def header_block(name: str, size: int) -> bytes:
+    """The tar header of a regular member (mode 644, mtime 0, no owner), the bytes
+    ``tarfile.TarInfo.tobuf`` gives in PAX format: for a short ASCII name and a size below
+    8 GiB a ustar block patched from a template (tobuf builds it field by field, 40 µs a
+    member), tarfile's own header otherwise (a PAX record for a long or non-ASCII name)."""
+    raw = name.encode("ascii", "surrogateescape") if name.isascii() else None
+    if raw is None or len(raw) > 100 or not 0 <= size < 8 ** 11:
+        info = tarfile.TarInfo(name)
+        info.size, info.mode, info.mtime = size, 0o644, 0
+        return info.tobuf(tarfile.PAX_FORMAT, "utf-8", "surrogateescape")
+    digits = b"%011o\0" % size
+    checksum = _FIXED_SUM + sum(raw) + sum(digits)
+    return b"".join((raw, bytes(100 - len(raw)), _TEMPLATE[100:124], digits, _TEMPLATE[136:148],
+                     b"%06o\0 " % checksum, _TEMPLATE[156:]))
 
 
 class WebDatasetWriter(Writer):

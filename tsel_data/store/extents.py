@@ -11,11 +11,12 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
-import h5py
 import numpy as np
 
+from ..errors import DatasetError
 from .dataset import load_dataset_doc
 from .layout import RECEIVERS_GROUP
+from .reader import open_shard
 
 RAW_DTYPES = (np.dtype("<f4"), np.dtype("<i2"))
 
@@ -43,7 +44,7 @@ def audio_extents(root: str, split: str, receiver: str | None = None) -> list[Ex
     out: list[Extent] = []
     for entry in doc.shards(split):
         path = os.path.join(root, entry.file)
-        with h5py.File(path, "r") as f:
+        with open_shard(path) as f:
             d = f[name]
             if (d.ndim != 3 or d.chunks != (1, *d.shape[1:]) or d.id.get_create_plist().get_nfilters() != 0
                     or d.dtype not in RAW_DTYPES or not np.little_endian):
@@ -67,7 +68,7 @@ def read_extent(extent: Extent, src_fd: int, buf: np.ndarray) -> memoryview:
     while done < extent.nbytes:
         n = os.preadv(src_fd, [view[done:]], extent.offset + done)
         if n <= 0:
-            raise OSError(f"{extent.path} ends inside a scene's audio (byte {extent.offset + done}); the shard "
-                          f"is damaged")
+            raise DatasetError(f"{extent.path} ends inside a scene's audio (byte {extent.offset + done}); the "
+                               f"shard is damaged: `tsel check` the dataset, render the shard again")
         done += n
     return view

@@ -135,12 +135,7 @@ class SceneDataset:
             self._reset_handles()
         f = self._h5.get(k)
         if f is None:
-            path = os.path.join(self.root, self.shards[k].file)
-            try:
-                f = h5py.File(path, "r")
-            except OSError as e:
-                raise DatasetError(f"{path}: cannot open shard ({e}); the file is damaged, regenerate it") from None
-            self._h5[k] = f
+            f = self._h5[k] = open_shard(os.path.join(self.root, self.shards[k].file))
         return f
 
     def _records(self, k: int) -> list:
@@ -360,6 +355,14 @@ class SceneDataset:
 
     def __repr__(self) -> str:
         return f"SceneDataset({self.root!r}, split={self.split!r}, scenes={len(self)}, format={self.format!r})"
+
+
+def open_shard(path: str) -> h5py.File:
+    """An HDF5 shard opened for reading (DatasetError, one line, when it is damaged)."""
+    try:
+        return h5py.File(path, "r")
+    except OSError as e:
+        raise DatasetError(f"{path}: cannot open shard ({e}); the file is damaged, regenerate it") from None
 
 
 def shard_scene_ids(path: str) -> list[str]:
