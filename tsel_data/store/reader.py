@@ -367,7 +367,7 @@ def open_shard(path: str) -> h5py.File:
 
 def shard_scene_ids(path: str) -> list[str]:
     """The scene ids an HDF5 shard holds, in order (without opening its audio)."""
-    with h5py.File(path, "r") as h:
+    with open_shard(path) as h:
         return as_strs(h["scene_id"][()])
 
 
