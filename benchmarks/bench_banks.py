@@ -7,7 +7,7 @@ speed: scenes/s on one core (median of --repeats runs, with the time per scene s
    reading RIRs, rendering and mixing) for 2-source, 10 s, FOA scenes from a bank: static
    (one RIR per source) and moving (walks at 10/20/40 °/s, a knot at least every 100 ms):
    along circles (constant distance), and along lines (the distance changes, so the
-   renderer aligns the knots' direct paths and warps the input; timevarying.py). Includes
+   renderer aligns the knots' direct paths and warps the input; dsp/timevarying.py). Includes
    reading the RIRs from the bank file, rendering and mixing. Default bank: a TAU-shaped
    synthetic FOA bank (24 kHz, 7200-sample RIRs) written to a temporary native bank file:
    room "room", 2 circular trajectories of 360 positions 1° apart (TAU's circular rooms);
@@ -55,9 +55,9 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from tsel_data.banks import MemoryBank, Trajectory, open_bank, sample_bank_path, sample_bank_point  # noqa: E402
 from tsel_data.banks.native import write_bank  # noqa: E402
-from tsel_data.executors import prepare_worker  # noqa: E402
-from tsel_data.geometry import foa_gains  # noqa: E402
-from tsel_data.timevarying import render_moving, render_static  # noqa: E402
+from tsel_data.runtime.pool import prepare_worker  # noqa: E402
+from tsel_data.core.geometry import foa_gains  # noqa: E402
+from tsel_data.dsp.timevarying import render_moving, render_static  # noqa: E402
 
 FS = 24000
 
@@ -68,8 +68,8 @@ def tau_shaped_bank(path, L=7200, n=360, seed=0):
     are; nothing arrives before the direct sound). Room "room": circles;
     room "lines": straight lines (positions every 5 cm, the direct path at its fractional
     delay)."""
-    from tsel_data.geometry import cart_to_sph
-    from tsel_data.timevarying import fractional_kernel
+    from tsel_data.core.geometry import cart_to_sph
+    from tsel_data.dsp.timevarying import fractional_kernel
 
     rng = np.random.default_rng(seed)
     t = np.arange(L) / FS
@@ -295,8 +295,8 @@ def ripple_cases():
     RT60 0.4 s, hybrid RIRs (one late-tail realisation per path, as for simulated paths
     and banks)."""
     from tsel_data.acoustics import simulate_rirs
-    from tsel_data.geometry import cart_to_sph, room_to_array
-    from tsel_data.geometry import Room
+    from tsel_data.core.geometry import cart_to_sph, room_to_array
+    from tsel_data.core.geometry import Room
     from tsel_data.receivers import ArrayPose
 
     room, centre = Room((10.0, 9.0, 6.0), 0.4), (3.0, 4.5, 1.2)
@@ -321,12 +321,12 @@ def ripple_cases():
 
 def planned_section(preset, n, reps=6):
     """Ripple and cost of planned line passes, now against before (module docstring)."""
-    from tsel_data import placement
+    from tsel_data.plan import placement
     from tsel_data.acoustics import simulate_rirs
     from tsel_data.acoustics.metrics import RIPPLE_BANDS
     from tsel_data.errors import GeometryError
-    from tsel_data.onthefly import scene_source
-    from tsel_data.render import path_image
+    from tsel_data.job.onthefly import scene_source
+    from tsel_data.render.mix import path_image
 
     def before_image(r, path, x, seed):
         rs = simulate_rirs(r.room, r.array, path[:, 1:], FS, method=r.rir_method, seed=seed, one_source=True)

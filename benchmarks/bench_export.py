@@ -15,7 +15,7 @@ contestants taking turns (a busy machine slows each alike):
    split (in order, and through a 16-scene shuffle buffer) against ``open_dataset(DIR,
    "train")[i]`` for every scene. The ratio is stream / reader; issue 23 asks for >= 0.8.
 
-A stream tunes its process's malloc to keep freed memory (``tsel_data.malloc``); the
+A stream tunes its process's malloc to keep freed memory (``tsel_data.runtime.malloc``); the
 benchmark sets it before the first run, so every contestant runs with the same setting.
 """
 from __future__ import annotations
@@ -31,11 +31,11 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from tsel_data.config import load_config  # noqa: E402
 from tsel_data.export import export  # noqa: E402
-from tsel_data.malloc import reuse_freed_memory  # noqa: E402
-from tsel_data.pipeline import generate  # noqa: E402
+from tsel_data.runtime.malloc import reuse_freed_memory  # noqa: E402
+from tsel_data.job.pipeline import generate  # noqa: E402
 from tsel_data.store.dataset import load_dataset_doc  # noqa: E402
 from tsel_data.store.reader import open_dataset  # noqa: E402
-from tsel_data.streaming import SceneStream  # noqa: E402
+from tsel_data.tools.streaming import SceneStream  # noqa: E402
 
 
 def best(fns: dict, repeats: int) -> dict:

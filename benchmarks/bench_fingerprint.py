@@ -23,8 +23,8 @@ import time
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 from tsel_data.config import load_config  # noqa: E402
-from tsel_data.demo import synth_corpus  # noqa: E402
-from tsel_data.pipeline import generate, render_shards  # noqa: E402
+from tsel_data.corpus.demo import synth_corpus  # noqa: E402
+from tsel_data.job.pipeline import generate, render_shards  # noqa: E402
 
 
 def corpus_bytes(folder: str) -> int:

@@ -27,7 +27,7 @@ sys.path.insert(0, REPO)
 CHILD = r"""
 import json, sys, time
 sys.path.insert(0, {repo!r})
-from tsel_data.shards import open_plan
+from tsel_data.job.shards import open_plan
 out, which = {out!r}, {which!r}
 t0 = time.perf_counter()
 plan = open_plan(out)
@@ -56,7 +56,7 @@ def main() -> None:
     args = ap.parse_args()
 
     from tsel_data.config import load_config
-    from tsel_data.pipeline import plan_dataset
+    from tsel_data.job.pipeline import plan_dataset
 
     root = tempfile.mkdtemp(prefix="tsel-bench-jobs-")
     try:

@@ -35,11 +35,11 @@ from tsel_data.acoustics.image_paths import GROUPS  # noqa: E402
 from tsel_data.acoustics.reference import dense_image, image_part_timing  # noqa: E402
 from tsel_data.acoustics.shoebox import shoebox_rirs  # noqa: E402
 from tsel_data.choices import PathKind  # noqa: E402
-from tsel_data.geometry import Room  # noqa: E402
-from tsel_data.placement import KNOT_HOP_S, KNOT_STEP_DEG, knot_hop  # noqa: E402
+from tsel_data.core.geometry import Room  # noqa: E402
+from tsel_data.plan.placement import KNOT_HOP_S, KNOT_STEP_DEG, knot_hop  # noqa: E402
 from tsel_data.receivers import ArrayPose  # noqa: E402
-from tsel_data.render import moving_image_part  # noqa: E402
-from tsel_data.timevarying import render_static  # noqa: E402
+from tsel_data.render.mix import moving_image_part  # noqa: E402
+from tsel_data.dsp.timevarying import render_static  # noqa: E402
 
 FS = 24000
 

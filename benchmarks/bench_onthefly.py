@@ -4,8 +4,8 @@
 
 Needs torch (``pip install -e '.[baseline]'``). Generates ``--scenes`` scenes of the
 preset (10 s, 24 kHz, on the built-in demo corpus) into a temporary dataset, then feeds
-the same scenes through ``tsel_data.torch.Dataset`` + ``DataLoader`` (batch 8), once
-rendered on the fly (``tsel_data.onthefly.SceneSource``) and once read from the shards
+the same scenes through ``tsel_data.tools.torch.Dataset`` + ``DataLoader`` (batch 8), once
+rendered on the fly (``tsel_data.job.onthefly.SceneSource``) and once read from the shards
 (the baseline), with 1 and 2 DataLoader workers. Prints scenes/s and the ratio
 on-the-fly / shards. Each loader is iterated once to warm up (worker start-up, page
 cache) before the timed pass.
@@ -27,10 +27,10 @@ except ImportError:
     sys.exit("bench_onthefly needs torch: pip install -e '.[baseline]'")
 
 from tsel_data.config import load_config  # noqa: E402
-from tsel_data.demo import synth_corpus  # noqa: E402
-from tsel_data.onthefly import SceneSource  # noqa: E402
-from tsel_data.pipeline import generate  # noqa: E402
-from tsel_data.torch import Dataset, collate, worker_init_fn  # noqa: E402
+from tsel_data.corpus.demo import synth_corpus  # noqa: E402
+from tsel_data.job.onthefly import SceneSource  # noqa: E402
+from tsel_data.job.pipeline import generate  # noqa: E402
+from tsel_data.tools.torch import Dataset, collate, worker_init_fn  # noqa: E402
 
 
 def rate(dataset, workers: int) -> float:

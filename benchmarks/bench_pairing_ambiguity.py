@@ -31,9 +31,9 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from tsel_data.captions import CaptionIndex, load_embeddings  # noqa: E402
+from tsel_data.corpus.captions import CaptionIndex, load_embeddings  # noqa: E402
 from tsel_data.config import load_config  # noqa: E402
-from tsel_data.plan import plan_split_json, prepare_views  # noqa: E402
+from tsel_data.plan.sampler import plan_split_json, prepare_views  # noqa: E402
 from tsel_data.store.layout import Layout  # noqa: E402
 
 THRESHOLDS = (0.5, 0.6)
@@ -86,7 +86,7 @@ def minilm(recipes_by_measure: dict, embeddings: str):
         with np.load(embeddings, allow_pickle=False) as z:
             table = dict(zip(z["captions"].tolist(), np.asarray(z["vectors"], dtype=np.float32)))
     else:
-        from tsel_data.embeddings import default_model_dir, embed
+        from tsel_data.plan.embeddings import default_model_dir, embed
 
         caps = sorted({c for recipes in recipes_by_measure.values() for r in recipes
                        for c in [r["query"], *(c for s in r["sources"][1:] for c in s["captions"])]})

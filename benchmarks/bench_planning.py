@@ -21,7 +21,7 @@ import time
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from tsel_data.config import load_config  # noqa: E402
-from tsel_data.plan import plan_split_json, prepare_views  # noqa: E402
+from tsel_data.plan.sampler import plan_split_json, prepare_views  # noqa: E402
 from tsel_data.store.layout import Layout  # noqa: E402
 
 SETTINGS = {

@@ -31,13 +31,13 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 os.environ["TSEL_CACHE_DIR"] = "off"  # every clip check decodes
 
-from tsel_data import audio  # noqa: E402
-from tsel_data.catalog import check_clips, read_split_clips, split_audio_dir  # noqa: E402
+from tsel_data.corpus import audio  # noqa: E402
+from tsel_data.plan.catalog import check_clips, read_split_clips, split_audio_dir  # noqa: E402
 from tsel_data.config import load_config  # noqa: E402
-from tsel_data.demo import synth_corpus  # noqa: E402
-from tsel_data.plan import plan_scene, prepare_views  # noqa: E402
-from tsel_data.prepared import CACHE_ENV  # noqa: E402
-from tsel_data.render import render_scene  # noqa: E402
+from tsel_data.corpus.demo import synth_corpus  # noqa: E402
+from tsel_data.plan.sampler import plan_scene, prepare_views  # noqa: E402
+from tsel_data.corpus.prepared import CACHE_ENV  # noqa: E402
+from tsel_data.render.mix import render_scene  # noqa: E402
 from tsel_data.store.layout import Layout  # noqa: E402
 
 

@@ -37,11 +37,11 @@ import soundfile as sf  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from tsel_data.audio import _load_clip_cached  # noqa: E402
+from tsel_data.corpus.audio import _load_clip_cached  # noqa: E402
 from tsel_data.config import load_config  # noqa: E402
-from tsel_data.demo import synth_corpus  # noqa: E402
-from tsel_data.plan import plan_scene, prepare_views  # noqa: E402
-from tsel_data.render import render_scene  # noqa: E402
+from tsel_data.corpus.demo import synth_corpus  # noqa: E402
+from tsel_data.plan.sampler import plan_scene, prepare_views  # noqa: E402
+from tsel_data.render.mix import render_scene  # noqa: E402
 from tsel_data.store.layout import Layout  # noqa: E402
 
 TSEL = os.path.join(os.path.dirname(sys.executable), "tsel")

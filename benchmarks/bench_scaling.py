@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_scaling.py [--scenes 32] [--workers 2]
 
-Runs the real job (`tsel_data.pipeline.generate`: plan, render, shards on disk,
+Runs the real job (`tsel_data.job.pipeline.generate`: plan, render, shards on disk,
 dataset.json) on the built-in demo corpus, 10 s 24 kHz 2-source scenes, for each setting
 below, once with 1 worker (the baseline, measured in the same run) and once with N.
 Prints one row per setting; docs/scaling.md quotes its output.
@@ -19,8 +19,8 @@ import time
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from tsel_data.config import load_config  # noqa: E402
-from tsel_data.demo import synth_corpus  # noqa: E402
-from tsel_data.pipeline import generate, plan_dataset  # noqa: E402
+from tsel_data.corpus.demo import synth_corpus  # noqa: E402
+from tsel_data.job.pipeline import generate, plan_dataset  # noqa: E402
 
 SETTINGS = {
     "mic4, paper rooms (hybrid)": ("paper-sim-2dir", []),
@@ -56,7 +56,7 @@ def main():
     bank = None
     try:
         from tsel_data.banks.scenes import resolve_bank
-        from tsel_data.plan import bank_request
+        from tsel_data.plan.sampler import bank_request
         from tsel_data.store.layout import Layout
 
         # builds the demo bank once

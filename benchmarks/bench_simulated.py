@@ -12,7 +12,7 @@ random yaw; sources 1-3 m from the array, 0.5 m from every wall.
 
 Measured, each configuration in its own worker process (one thread each):
   * scenes/s per core end to end: recipe -> dry clips from disk -> RIRs -> FFT
-    convolution -> levels, labels -> HDF5 + JSON shard on disk (tsel_data.render,
+    convolution -> levels, labels -> HDF5 + JSON shard on disk (tsel_data.render.mix,
     tsel_data.store.writer);
   * the same for pyroomacoustics' default path (pra.inverse_sabine absorption and max
     order, ShoeBox, room.simulate(return_premix=True)) on the same recipes, written the
@@ -24,7 +24,7 @@ Measured, each configuration in its own worker process (one thread each):
   * a scene against its own convolution (``--sections ratio``): CPU time of a whole
     ``render_scene`` (clips from the cache, RIRs, convolution, levels, labels, record;
     no shard writing) over the CPU time of the static convolutions inside it
-    (timevarying.render_static as render.py calls it), hybrid, mic4, median of
+    (timevarying.render_static as render/mix.py calls it), hybrid, mic4, median of
     ``--repeats``. Once with the render workers' memory settings
     (executors.prepare_worker: freed memory kept for reuse) and once with glibc's
     defaults, where every large buffer comes fresh from the kernel (page faults), as in
@@ -52,9 +52,9 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 from tsel_data.acoustics import simulate_rirs  # noqa: E402
 from tsel_data.acoustics.metrics import t30  # noqa: E402
-from tsel_data.geometry import Room, array_to_room  # noqa: E402
+from tsel_data.core.geometry import Room, array_to_room  # noqa: E402
 from tsel_data.receivers import ArrayPose  # noqa: E402
-from tsel_data.recipe import SceneRecipe, Source  # noqa: E402
+from tsel_data.scene.recipe import SceneRecipe, Source  # noqa: E402
 
 FS = 24000
 DURATION = 10.0
@@ -113,7 +113,7 @@ def make_clips(clip_dir: str) -> None:
 
 # --- rendering -----------------------------------------------------------------------------
 def render_ours(recipe: SceneRecipe):
-    from tsel_data.render import render_scene
+    from tsel_data.render.mix import render_scene
 
     return render_scene(recipe)
 
@@ -122,8 +122,8 @@ def render_pra_default(recipe: SceneRecipe):
     """pyroomacoustics as a user writes it: inverse_sabine, ShoeBox, room.simulate()."""
     import pyroomacoustics as pra
 
-    from tsel_data.audio import active_rms, frame_activity, load_clip_cached
-    from tsel_data.render import source_labels
+    from tsel_data.corpus.audio import active_rms, frame_activity, load_clip_cached
+    from tsel_data.render.mix import source_labels
     from tsel_data.store.scene import Scene
 
     np.random.seed(recipe.seed % 2**32)  # pra's generator is numpy's global one
@@ -158,7 +158,7 @@ def run_scenes(args) -> dict:
     # warm-up outside the timer: imports, FFT plans (a long-running worker pays these once)
     import pyroomacoustics  # noqa: F401
 
-    import tsel_data.render  # noqa: F401
+    import tsel_data.render.mix  # noqa: F401
     if renderer == "ours":
         render(recipes[0])
     attrs = {"fs": FS, "label_hop": 0.1, "format": recipes[0].array.format,
@@ -184,7 +184,7 @@ def run_scenes(args) -> dict:
 def in_worker(fn, args, processes: int = 1):
     """Run ``fn`` on each of ``args`` in a fresh pool (fresh processes: clean peak RSS), each
     process set up as the toolkit's render workers are (executors.prepare_worker)."""
-    from tsel_data.executors import prepare_worker
+    from tsel_data.runtime.pool import prepare_worker
 
     ctx = mp.get_context("fork")
     with ctx.Pool(processes, initializer=prepare_worker, maxtasksperchild=1) as pool:
@@ -196,7 +196,7 @@ def scene_vs_convolution(args) -> dict:
     """CPU ms per scene of ``render_scene`` on ``recipes`` and of the convolutions inside
     it, in this process (one worker of :func:`in_worker` or :func:`in_plain_worker`)."""
     recipes = args
-    import tsel_data.render as render
+    import tsel_data.render.mix as render
 
     spent = [0.0]
     convolve_static = render.render_static

@@ -12,7 +12,7 @@ worktree, removed at the end. Runs of the two trees alternate, so both see the s
 of a shared machine; the ratio is the other tree's median over this one's.
 
 Rows:
-  import tsel_data.render   ``python -X importtime -c "import tsel_data.render"``
+  import tsel_data.render.mix   ``python -X importtime -c "import tsel_data.render.mix"``
   + the simulator           the same and ``tsel_data.acoustics.shoebox``: what the first
                             simulated scene of a process adds (the methods are imported
                             when used)
@@ -38,7 +38,7 @@ import tempfile
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TSEL = os.path.join(os.path.dirname(sys.executable), "tsel")
-GOALS = {"import tsel_data.render": 0.6, "tsel --version": 0.4}
+GOALS = {"import tsel_data.render.mix": 0.6, "tsel --version": 0.4}
 # the imports worth naming in the render path's list
 NAMED = ("numpy", "scipy.fft", "scipy.signal", "scipy.special", "scipy.linalg", "h5py", "soundfile", "ducc0",
          "tsel_data.acoustics.shoebox")
@@ -49,8 +49,8 @@ NAMED = ("numpy", "scipy.fft", "scipy.signal", "scipy.special", "scipy.linalg", 
 # `tsel corpus prepare` never does), which is not what this benchmark is about
 SETUP = """
 import glob, soundfile as sf
-from tsel_data.audio import load_clip
-from tsel_data.demo import synth_corpus
+from tsel_data.corpus.audio import load_clip
+from tsel_data.corpus.demo import synth_corpus
 synth_corpus({corpus!r}, seed=0)
 for path in glob.glob({corpus!r} + "/audio/*.wav"):
     info = sf.info(path)
@@ -62,8 +62,8 @@ for path in glob.glob({corpus!r} + "/audio/*.wav"):
 def rows(corpus: str, out: str) -> list[tuple[str, list[str]]]:
     py = sys.executable
     return [
-        ("import tsel_data.render", [py, "-X", "importtime", "-c", "import tsel_data.render"]),
-        ("+ the simulator", [py, "-X", "importtime", "-c", "import tsel_data.render, tsel_data.acoustics.shoebox"]),
+        ("import tsel_data.render.mix", [py, "-X", "importtime", "-c", "import tsel_data.render.mix"]),
+        ("+ the simulator", [py, "-X", "importtime", "-c", "import tsel_data.render.mix, tsel_data.acoustics.shoebox"]),
         ("tsel --version", [py, TSEL, "--version"]),
         ("tsel --help", [py, TSEL, "--help"]),
         ("tsel generate, 1 scene", [py, TSEL, "generate", "--preset", "demo", "--corpus-dir", corpus, "--split",

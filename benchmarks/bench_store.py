@@ -37,8 +37,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import h5py  # noqa: E402
 
 from tsel_data.config import load_config  # noqa: E402
-from tsel_data.demo import synth_corpus  # noqa: E402
-from tsel_data.pipeline import generate  # noqa: E402
+from tsel_data.corpus.demo import synth_corpus  # noqa: E402
+from tsel_data.job.pipeline import generate  # noqa: E402
 from tsel_data.store.reader import open_dataset  # noqa: E402
 
 
@@ -111,8 +111,8 @@ def batched_rate(out, batch=8, repeats=3) -> float:
 RSS_CHILD = r"""
 import json, os, sys
 sys.path.insert(0, {repo!r})
-from tsel_data.executors import prepare_worker
-from tsel_data.shards import open_plan, render_shard
+from tsel_data.runtime.pool import prepare_worker
+from tsel_data.job.shards import open_plan, render_shard
 prepare_worker()
 out = {out!r}
 plan = open_plan(out)
@@ -127,7 +127,7 @@ print(json.dumps(int(peak) * 1024))
 
 def peak_rss(corpus, root, size) -> float:
     """Peak RSS (bytes) of a fresh process rendering one shard of ``size`` scenes."""
-    from tsel_data.pipeline import plan_dataset
+    from tsel_data.job.pipeline import plan_dataset
 
     out = os.path.join(root, f"rss-{size}")
     cfg = load_config(preset="demo", corpus_dir=corpus, splits={"train": size, "val": 0, "test": 0},
@@ -143,10 +143,10 @@ def scene_cost(corpus, root, n) -> dict:
     """Seconds per scene rendered from 24 kHz mono clips, 44.1 kHz stereo, and prepared."""
     from scipy.signal import resample_poly
 
-    from tsel_data import audio
-    from tsel_data.catalog import build_catalog, prepare_corpus
-    from tsel_data.plan import prepare_views, plan_scene
-    from tsel_data.render import render_scene
+    from tsel_data.corpus import audio
+    from tsel_data.plan.catalog import build_catalog, prepare_corpus
+    from tsel_data.plan.sampler import prepare_views, plan_scene
+    from tsel_data.render.mix import render_scene
     from tsel_data.store.layout import Layout
     import soundfile as sf
 

@@ -20,8 +20,8 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 from tsel_data.config import load_config  # noqa: E402
-from tsel_data.plan import plan_roots, plan_scene, prepare_views  # noqa: E402
-from tsel_data.render import render_scene  # noqa: E402
+from tsel_data.plan.sampler import plan_roots, plan_scene, prepare_views  # noqa: E402
+from tsel_data.render.mix import render_scene  # noqa: E402
 from tsel_data.store.layout import Layout  # noqa: E402
 
 

@@ -104,10 +104,10 @@ sys.exit(int.from_bytes(code, "big", signed=True))
 PRELOAD = ["numpy", "scipy.signal", "h5py", "soundfile", "pyroomacoustics", "tqdm", "click", "tsel_data.cli",
            *(f"tsel_data.cli.{m}" for m in ("bank", "check", "corpus", "dataset", "eval", "export", "inspect", "presets",
                                             "stats", "verify")),
-           "tsel_data.pipeline", "tsel_data.shards", "tsel_data.render", "tsel_data.plan", "tsel_data.catalog",
-           "tsel_data.preflight", "tsel_data.stats", "tsel_data.inspect", "tsel_data.verify", "tsel_data.evaluate",
-           "tsel_data.evaluate_dcase", "tsel_data.export", "tsel_data.demo", "tsel_data.store.check",
-           "tsel_data.stems", "tsel_data.banks"]
+           "tsel_data.job.pipeline", "tsel_data.job.shards", "tsel_data.render.mix", "tsel_data.plan.sampler", "tsel_data.plan.catalog",
+           "tsel_data.job.preflight", "tsel_data.tools.stats", "tsel_data.tools.inspect", "tsel_data.tools.verify", "tsel_data.tools.evaluate",
+           "tsel_data.tools.evaluate_dcase", "tsel_data.export", "tsel_data.corpus.demo", "tsel_data.store.check",
+           "tsel_data.job.stems", "tsel_data.banks"]
 
 
 @dataclass
@@ -339,7 +339,7 @@ def run_group(group: str, base: Path | None = None, pages=None, check: bool = Fa
             _rename_remembered(root / "cache", base, root)
         with Sandbox(root) as box:
             if start == "corpus":
-                box.run(Example("(corpus)", "run", "", "python", "from tsel_data.demo import synth_corpus\n"
+                box.run(Example("(corpus)", "run", "", "python", "from tsel_data.corpus.demo import synth_corpus\n"
                                 "synth_corpus('/tmp/tsel-demo/demo-corpus', seed=0)\n", None, ""))
             stale = _run_group(box, base, members[:max(members.index(p) for p in wanted) + 1], wanted, check)
         if not check:

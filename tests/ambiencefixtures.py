@@ -1,4 +1,4 @@
-"""Tiny ambience recordings in the layouts tsel_data.ambience reads, generated at test time.
+"""Tiny ambience recordings in the layouts tsel_data.corpus.ambience reads, generated at test time.
 
 :func:`make_tau_snoise` writes a TAU-SNoise_DB folder as distributed (``NN_<room>_…``
 folders, ``ambience_{foa_sn3d,tetra}_24k_edited.wav``) or with the DCASE generator's

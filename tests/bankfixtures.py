@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 import scipy.io
 
-from tsel_data.geometry import sph_to_cart
+from tsel_data.core.geometry import sph_to_cart
 
 
 def ring_doas(n: int, el_deg: float, az0: float = 0.0, step: float | None = None) -> np.ndarray:

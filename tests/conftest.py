@@ -15,7 +15,7 @@ os.environ.setdefault("TSEL_CLIP_CACHE", tempfile.mkdtemp(prefix="tsel-test-clip
 @pytest.fixture(scope="session")
 def demo_corpus(tmp_path_factory):
     """The built-in synthetic corpus, made once per test session."""
-    from tsel_data.demo import synth_corpus
+    from tsel_data.corpus.demo import synth_corpus
 
     d = tmp_path_factory.mktemp("demo-corpus")
     synth_corpus(str(d), seed=0)

@@ -12,11 +12,11 @@ import os
 
 import numpy as np
 
-from tsel_data.geometry import array_to_room, foa_gains, sph_to_cart, wrap_azimuth
+from tsel_data.core.geometry import array_to_room, foa_gains, sph_to_cart, wrap_azimuth
 from tsel_data.receivers import mic_positions
 from tsel_data.store.dataset import dataset_doc, shard_attrs
 from tsel_data.store.records import SceneRecord
-from tsel_data.atomic import write_json
+from tsel_data.core.atomic import write_json
 from tsel_data.store.scene import Scene
 from tsel_data.store.writer import write_shard
 
@@ -134,7 +134,7 @@ def make_dataset(root, *, fmt="mic4", splits=None, seed=0, n_frames=20, fs=16000
 
 def plan_recipes(cfg, split, view):
     """Every recipe of a split, planned in memory (what `tsel plan` writes, unserialised)."""
-    from tsel_data.plan import plan_scene
+    from tsel_data.plan.sampler import plan_scene
 
     return [plan_scene(cfg, split, i, view) for i in range(cfg.splits[split].count)]
 

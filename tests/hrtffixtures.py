@@ -24,7 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from tsel_data.geometry import SOUND_SPEED, cart_to_sph, sph_to_cart
+from tsel_data.core.geometry import SOUND_SPEED, cart_to_sph, sph_to_cart
 
 EARS = np.array([[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])  # left, right (head frame)
 

@@ -11,7 +11,7 @@ from tsel_data.acoustics.ism import add_impulses, grid_to_signal, image_chunks, 
 from tsel_data.acoustics.metrics import edc, t30
 from tsel_data.acoustics.shoebox import TRANSITION, shoebox_rirs
 from tsel_data.errors import GeometryError
-from tsel_data.geometry import Room, array_to_room, foa_gains
+from tsel_data.core.geometry import Room, array_to_room, foa_gains
 from tsel_data.receivers import ArrayPose
 
 FS = 24000

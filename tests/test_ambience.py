@@ -1,4 +1,4 @@
-"""Recorded ambience (tsel_data/ambience.py): the layouts are found from headers, bank rooms
+"""Recorded ambience (tsel_data/corpus/ambience.py): the layouts are found from headers, bank rooms
 find their own room's recording, segments are exactly the file's samples at the drawn
 offset, the SNR is exactly the DCASE generator's, and every bad input is one line."""
 import math
@@ -10,8 +10,8 @@ import soundfile as sf
 
 from ambiencefixtures import (DCASE_FOLDERS, TAU_SNOISE_FOLDERS, make_tau_snoise, make_user_folder,
                               write_recording, signature)
-from tsel_data import ambience
-from tsel_data.ambience import find_ambience, omni_energy, snr_gain
+from tsel_data.corpus import ambience
+from tsel_data.corpus.ambience import find_ambience, omni_energy, snr_gain
 from tsel_data.errors import ConfigError
 
 FS = 24000

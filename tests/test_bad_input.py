@@ -314,7 +314,7 @@ def test_bank_problems_library(tmp_path):
     """The same checks through the library, several problems at once."""
     from tsel_data.banks.scenes import bank_problems
     from tsel_data.config import load_config
-    from tsel_data.plan import bank_request
+    from tsel_data.plan.sampler import bank_request
 
     p = _bank(tmp_path / "b.h5", fs=16000, nan_room="roomA")
     cfg = load_config(preset="demo", overrides=[f'room.bank="{p}"', 'splits.train.rooms=["roomA", "roomQ"]'],
@@ -390,7 +390,7 @@ def test_bad_clip_policy_skip_and_fail(tmp_path):
 
 def test_nan_clip_never_reaches_a_scene(tmp_path):
     """With corpus.check below "full", NaN samples are caught when the clip is loaded."""
-    from tsel_data.audio import load_clip
+    from tsel_data.corpus.audio import load_clip
     from tsel_data.errors import AudioError
 
     p = str(tmp_path / "n.wav")
@@ -402,7 +402,7 @@ def test_nan_clip_never_reaches_a_scene(tmp_path):
 
 
 def test_a_good_bank_passes_and_its_scenes_are_planned(tmp_path, demo_corpus):
-    from tsel_data.preflight import check_config
+    from tsel_data.job.preflight import check_config
     from tsel_data.config import load_config
 
     p = _bank(tmp_path / "good.h5")
@@ -419,7 +419,7 @@ def test_clip_silent_in_the_part_a_scene_uses_is_a_bad_clip(tmp_path):
     import numpy as np
     import soundfile as sf
 
-    from tsel_data.audio import check_clip
+    from tsel_data.corpus.audio import check_clip
 
     x = np.zeros(20 * 16000, dtype=np.float32)
     x[12 * 16000:] = 0.5 * np.sin(np.arange(8 * 16000) / 5.0)

@@ -11,8 +11,8 @@ from bankfixtures import make_sofa, make_tau_db, ring_doas
 from tsel_data.banks import BankError, MemoryBank, Trajectory, bank_path_positions, open_bank, sample_bank_path, sample_bank_point
 from tsel_data.banks.native import NativeBank, write_bank
 from tsel_data.errors import TselError
-from tsel_data.geometry import cart_to_sph, foa_gains, sph_to_cart
-from tsel_data.timevarying import render_moving
+from tsel_data.core.geometry import cart_to_sph, foa_gains, sph_to_cart
+from tsel_data.dsp.timevarying import render_moving
 
 
 @pytest.fixture(scope="module")

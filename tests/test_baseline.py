@@ -1,5 +1,5 @@
 """The baseline trainer (tsel_baseline): features, augmentation, text encoders, and a tiny
-end-to-end run from `tsel generate` to `tsel_data.evaluate`. Skipped without torch."""
+end-to-end run from `tsel generate` to `tsel_data.tools.evaluate`. Skipped without torch."""
 import json
 import math
 

@@ -1,7 +1,7 @@
 import pytest
 
 from tsel_data.config import load_config, parse_config, preset_names
-from tsel_data.distributions import Dist
+from tsel_data.scene.distributions import Dist
 from tsel_data.errors import ConfigError
 
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from tsel_data.catalog import scan_catalog
+from tsel_data.plan.catalog import scan_catalog
 from tsel_data.config import load_config
 from tsel_data.errors import ManifestError
 
@@ -234,7 +234,7 @@ def test_clip_reuse_warning(tmp_path, capsys):
 
 
 def test_clip_checks_are_remembered_until_a_file_changes(tmp_path, monkeypatch, capsys):
-    import tsel_data.catalog as catalog
+    import tsel_data.plan.catalog as catalog
 
     monkeypatch.setenv("TSEL_CACHE_DIR", str(tmp_path / "cache"))
     corpus = audiocaps_corpus(tmp_path / "ac", names={"a": "{yt}.wav"})
@@ -264,7 +264,7 @@ def test_clip_checks_are_remembered_until_a_file_changes(tmp_path, monkeypatch, 
 
 
 def test_clip_cache_can_be_turned_off_and_survives_a_damaged_file(tmp_path, monkeypatch):
-    from tsel_data.clipcache import ClipCache, cache_dir
+    from tsel_data.corpus.clipcache import ClipCache, cache_dir
 
     monkeypatch.setenv("TSEL_CACHE_DIR", "off")
     assert cache_dir() is None
@@ -277,7 +277,7 @@ def test_clip_cache_can_be_turned_off_and_survives_a_damaged_file(tmp_path, monk
 
 
 def test_read_split_clips_names_the_manifest_folder(tmp_path):
-    from tsel_data.catalog import read_split_clips
+    from tsel_data.plan.catalog import read_split_clips
 
     corpus = audiocaps_corpus(tmp_path / "ac")
     cfg = load_config(preset="demo", overrides=FAST + ['splits.val.manifest="valid.csv"'], corpus_dir=str(corpus))
@@ -289,7 +289,7 @@ def test_read_split_clips_names_the_manifest_folder(tmp_path):
 
 
 def test_a_nul_byte_in_a_clip_name_is_a_missing_file_not_a_crash(tmp_path):
-    from tsel_data.clipcache import file_key
+    from tsel_data.corpus.clipcache import file_key
 
     (tmp_path / "ab.wav").write_bytes(b"")
     assert file_key(str(tmp_path / "ab.wav"), "s") is not None

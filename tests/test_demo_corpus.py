@@ -13,7 +13,7 @@ import pytest
 import soundfile as sf
 from scipy import signal
 
-from tsel_data.demo import CSV_HEADER, SOUND_TYPES, TYPES_BY_NAME, synth_corpus
+from tsel_data.corpus.demo import CSV_HEADER, SOUND_TYPES, TYPES_BY_NAME, synth_corpus
 from tsel_data.errors import ConfigError
 
 SPLITS = ("train", "val", "test")
@@ -162,7 +162,7 @@ def test_quoting_and_unicode_round_trip(corpus):
 
 
 def test_manifest_reader_groups_the_demo_corpus(corpus):
-    ac = pytest.importorskip("tsel_data.manifests.audiocaps")
+    ac = pytest.importorskip("tsel_data.corpus.manifests.audiocaps")
     out, info, _ = corpus
     for split in SPLITS:
         clips = ac.read_audiocaps(out / f"{split}.csv", audio_dir=out / "audio")

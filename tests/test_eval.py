@@ -6,8 +6,8 @@ from click.testing import CliRunner
 
 from datasetfixture import make_dataset
 from tsel_data.cli.eval import eval_cmd
-from tsel_data.evaluate import PredictionError, evaluate, write_predictions
-from tsel_data.labels import gaussian_target
+from tsel_data.tools.evaluate import PredictionError, evaluate, write_predictions
+from tsel_data.tools.labels import gaussian_target
 from tsel_data.store import open_dataset
 
 

@@ -3,8 +3,8 @@ import os
 
 import pytest
 
-from tsel_data.pipeline import finalize, generate, plan_dataset, render_shards
-from tsel_data.digest import sha256_file
+from tsel_data.job.pipeline import finalize, generate, plan_dataset, render_shards
+from tsel_data.core.digest import sha256_file
 
 
 def _digest(d):
@@ -34,7 +34,7 @@ def test_dask_local_cluster_and_ranges_match_local(small_config, tmp_path):
 
 def test_dask_needs_a_scheduler(tmp_path):
     from tsel_data.errors import TselError
-    from tsel_data.executors import Runner
+    from tsel_data.runtime.runner import Runner
 
     with pytest.raises(TselError, match="--scheduler"):
         Runner("dask")

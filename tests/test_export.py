@@ -9,7 +9,8 @@ from click.testing import CliRunner
 from datasetfixture import make_dataset
 from tsel_data.cli.export import export_cmd
 from tsel_data.errors import DatasetError, TselError
-from tsel_data.export import dcase_rows, export_dcase, read_dcase_csv
+from tsel_data.export import export_dcase
+from tsel_data.formats.dcase import dcase_rows, read_dcase_csv
 from tsel_data.store import Scene, open_dataset
 
 

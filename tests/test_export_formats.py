@@ -14,12 +14,12 @@ import pytest
 import soundfile as sf
 
 from datasetfixture import make_scene
-from tsel_data.atomic import write_json
+from tsel_data.core.atomic import write_json
 from tsel_data.export import export
 from tsel_data.store import open_dataset
 from tsel_data.store.dataset import dataset_doc, shard_attrs
 from tsel_data.store.writer import write_shard
-from tsel_data.streaming import SceneStream
+from tsel_data.tools.streaming import SceneStream
 
 # datasets caches what it loads under HF_HOME: a folder of this run, never the network
 os.environ.setdefault("HF_HOME", tempfile.mkdtemp(prefix="tsel-test-hf-"))
@@ -96,7 +96,7 @@ def test_label_text_is_the_text_json_gives():
     """Label arrays go into the sample JSON as json.dumps writes them (NaN as null), each
     distinct value formatted once: -0.0 is not 0.0, and repeats, NaN and infinities keep
     their places."""
-    from tsel_data.export.webdataset import _labels
+    from tsel_data.formats.webdataset import _labels
 
     rng = np.random.default_rng(0)
     cases = [np.array([[0.0, -0.0, np.nan, 1.5, 0.0], [np.inf, -np.inf, 3e-40, 1e30, -0.0]], np.float32),
@@ -111,7 +111,7 @@ def test_tar_headers_read_as_tarfile_reads_them_and_damage_is_one_line(wds_out, 
     import tarfile
 
     from tsel_data.errors import DatasetError
-    from tsel_data.export.webdataset import iter_members, tar_header
+    from tsel_data.formats.webdataset import iter_members, tar_header
 
     headers = []
     for fmt in (tarfile.PAX_FORMAT, tarfile.USTAR_FORMAT, tarfile.GNU_FORMAT):
@@ -156,7 +156,7 @@ def test_tar_headers_written_are_the_ones_tarfile_writes():
     names that fit a ustar block and names that need a PAX record, sizes up to 8 GiB and beyond."""
     import tarfile
 
-    from tsel_data.export.webdataset import header_block
+    from tsel_data.formats.webdataset import header_block
 
     for name in ("a", "train-000001.audio.npy", "x" * 100, "x" * 101, "d/" * 60 + "f.json", "é.json",
                  "s\udc80.json", ""):
@@ -329,7 +329,7 @@ def test_streaming_reads_each_scene_once_per_epoch_whatever_the_slots(datasets_,
 
 def test_torch_streaming_dataset_and_default_collate(datasets_, wds_out):
     torch = pytest.importorskip("torch")
-    from tsel_data.torch import Dataset, StreamingDataset
+    from tsel_data.tools.torch import Dataset, StreamingDataset
 
     ids = list(reference(datasets_["float32"], "test"))
     # the map-style dataset's items batch with PyTorch's default collate (a caption query's relation is "")

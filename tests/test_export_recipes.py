@@ -15,8 +15,8 @@ from tsel_data.cli import main
 from tsel_data.config import load_config
 from tsel_data.errors import TselError
 from tsel_data.export import export
-from tsel_data.pipeline import generate
-from tsel_data.rebuild import rebuild
+from tsel_data.job.pipeline import generate
+from tsel_data.job.rebuild import rebuild
 from tsel_data.store import open_dataset
 from tsel_data.store.release import check_against_release, load_release
 

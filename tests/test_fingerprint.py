@@ -9,8 +9,8 @@ import pytest
 import soundfile as sf
 
 from tsel_data.config import load_config
-from tsel_data.pipeline import generate, render_shards
-from tsel_data.digest import sha256_file
+from tsel_data.job.pipeline import generate, render_shards
+from tsel_data.core.digest import sha256_file
 from tsel_data.store.integrity import input_stats
 
 

@@ -106,7 +106,7 @@ def test_one_manifest_for_every_split(tmp_path, capsys):
 
 
 def test_band_limited_clips_are_counted_and_can_be_left_out(demo_corpus, capsys):
-    from tsel_data.catalog import scan_catalog
+    from tsel_data.plan.catalog import scan_catalog
     from tsel_data.config import load_config
 
     out = ok(capsys, "check", "--preset", "demo", "--corpus-dir", demo_corpus, "--no-plan")
@@ -125,7 +125,7 @@ def test_band_limited_clips_are_counted_and_can_be_left_out(demo_corpus, capsys)
 def tiny_dataset(tmp_path_factory, demo_corpus):
     """4 train scenes of 1 s over the demo corpus, in shards of 3 (the last one partial)."""
     from tsel_data.config import load_config
-    from tsel_data.pipeline import generate
+    from tsel_data.job.pipeline import generate
 
     out = str(tmp_path_factory.mktemp("first-day") / "ds")
     cfg = load_config(preset="demo", corpus_dir=demo_corpus, splits={"train": 4, "val": 0, "test": 0},
@@ -135,7 +135,7 @@ def tiny_dataset(tmp_path_factory, demo_corpus):
 
 
 def test_stats_count_band_limited_targets(tiny_dataset, demo_corpus):
-    from tsel_data.stats import band_limited_targets, format_text, split_stats
+    from tsel_data.tools.stats import band_limited_targets, format_text, split_stats
 
     narrow = [n for n in sorted(os.listdir(os.path.join(demo_corpus, "audio")))
               if sf.info(os.path.join(demo_corpus, "audio", n)).samplerate == 16000][:2]
@@ -188,7 +188,7 @@ def test_a_rendered_dataset_does_not_shrink_and_grow_says_why_it_renders_a_shard
 
 def test_manifests_clip_checks_and_planning_show_progress(demo_corpus, tmp_path, capsys):
     from tsel_data.config import load_config
-    from tsel_data.pipeline import plan_dataset
+    from tsel_data.job.pipeline import plan_dataset
 
     cfg = load_config(preset="demo", corpus_dir=demo_corpus, splits={"train": 6, "val": 2, "test": 2},
                       overrides=['corpus.check="exists"'])

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from tsel_data import geometry as g
+from tsel_data.core import geometry as g
 
 
 def test_source_on_plus_y_is_azimuth_90():

@@ -14,7 +14,7 @@ from tsel_data.acoustics.hrtf import (
     ONSET_MARGIN_S, Hrtf, binaural_coherence, hrtf_diffuse_csd, hrtf_diffuse_weights, hrtf_weights, read_hrtf,
 )
 from tsel_data.errors import ConfigError
-from tsel_data.geometry import cart_to_sph, sph_to_cart
+from tsel_data.core.geometry import cart_to_sph, sph_to_cart
 
 
 @pytest.fixture(scope="module")

@@ -9,9 +9,9 @@ from datasetfixture import make_dataset
 from tsel_data.cli.inspect import inspect_cmd
 from tsel_data.cli.stats import stats_cmd
 from tsel_data.errors import DatasetError, TselError
-from tsel_data.geometry import array_to_room
-from tsel_data.inspect import find_scene, inspect_scene, source_tracks
-from tsel_data.stats import dataset_stats
+from tsel_data.core.geometry import array_to_room
+from tsel_data.tools.inspect import find_scene, inspect_scene, source_tracks
+from tsel_data.tools.stats import dataset_stats
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -99,7 +99,7 @@ def test_tools_close_their_files_even_when_they_fail(ds):
     by then, not when the traceback goes."""
     import h5py
 
-    from tsel_data.evaluate import PredictionError, evaluate
+    from tsel_data.tools.evaluate import PredictionError, evaluate
 
     root, _ = ds
 
@@ -119,7 +119,7 @@ def test_tools_close_their_files_even_when_they_fail(ds):
 
 
 def test_frame_segments_show_sparse_activity_and_do_not_jump_at_the_wrap():
-    from tsel_data.inspect import frame_runs, frame_segments, wrap_breaks
+    from tsel_data.tools.inspect import frame_runs, frame_segments, wrap_breaks
 
     hop = 0.1
     active = np.zeros(20, bool)
@@ -141,7 +141,7 @@ def test_frame_segments_show_sparse_activity_and_do_not_jump_at_the_wrap():
 
 def test_summary_lists_every_caption(ds):
     root, _ = ds
-    from tsel_data.inspect import summary
+    from tsel_data.tools.inspect import summary
 
     scene = find_scene(root, "train/0")
     object.__setattr__(scene.record.sources[0], "captions", [f"caption number {k}" for k in range(5)])
@@ -150,8 +150,8 @@ def test_summary_lists_every_caption(ds):
 
 
 def test_stereo_preview_of_each_format():
-    from tsel_data.geometry import foa_gains
-    from tsel_data.stereo import stereo_preview
+    from tsel_data.core.geometry import foa_gains
+    from tsel_data.receivers.stereo import stereo_preview
 
     sig = np.ones(8, np.float32)
     left_src = foa_gains(90.0, 0.0)[:, None] * sig  # a plane wave from the left
@@ -176,7 +176,7 @@ def test_inspect_writes_the_headphone_preview(ds, tmp_path):
 
 
 def test_stats_motion_and_speed(ds, tmp_path):
-    from tsel_data.stats import angular_speed, plot_stats
+    from tsel_data.tools.stats import angular_speed, plot_stats
 
     root, written = ds
     st = dataset_stats(str(root))

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from tsel_data.acoustics import highpass
-from tsel_data.audio import active_rms, frame_activity, frame_energy
-from tsel_data.geometry import Room
+from tsel_data.corpus.audio import active_rms, frame_activity, frame_energy
+from tsel_data.core.geometry import Room
 from tsel_data.receivers import ArrayPose
-from tsel_data.recipe import SceneRecipe, Source
-from tsel_data.render import convolve, spatial_images
+from tsel_data.scene.recipe import SceneRecipe, Source
+from tsel_data.render.mix import convolve, spatial_images
 
 HEAVY = ("numpy", "scipy", "h5py", "soundfile", "ducc0", "pyroomacoustics", "matplotlib", "dask", "torch")
 
@@ -68,10 +68,10 @@ def test_a_simulated_scene_renders_without_scipy_signal_nor_scipy_fft(tmp_path):
     code = f"""
     import numpy as np, soundfile as sf
     from tsel_data.acoustics.highpass import _compiled_loop
-    from tsel_data.geometry import Room
+    from tsel_data.core.geometry import Room
     from tsel_data.receivers import ArrayPose
-    from tsel_data.recipe import SceneRecipe, Source
-    from tsel_data.render import render_scene
+    from tsel_data.scene.recipe import SceneRecipe, Source
+    from tsel_data.render.mix import render_scene
     sf.write({str(tmp_path / "x.wav")!r}, np.random.default_rng(0).standard_normal(24000).astype(np.float32) * 0.1, 24000)
     src = Source("target", "c", {str(tmp_path / "x.wav")!r}, ("noise",), position=(3.0, 2.0, 1.5))
     recipe = SceneRecipe("s-0", "test", 0, 1, "two-directional", "noise", ArrayPose("mic4", (2.0, 2.5, 1.2), 10.0, 0.1),
@@ -121,7 +121,7 @@ def test_sosfilt_is_scipys_bit_for_bit(monkeypatch, compiled):
 def test_realfft_is_scipy_fft_bit_for_bit(monkeypatch, compiled):
     import scipy.fft
 
-    from tsel_data import realfft
+    from tsel_data.dsp import realfft
 
     if not compiled:  # another scipy layout: the public functions
         monkeypatch.setattr(realfft, "_pocketfft", lambda: None)

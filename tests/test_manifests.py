@@ -14,10 +14,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import datasetfixture
-from tsel_data.clip import Clip
+from tsel_data.corpus.clip import Clip
 from tsel_data.errors import ManifestError
-from tsel_data.manifests import (FORMATS, detect_format, missing_audio, read_audiocaps,
-                                 read_clotho, read_manifest, read_plain, read_wavcaps)
+from tsel_data.corpus.manifests import (FORMATS, detect_format, missing_audio, read_audiocaps, read_clotho,
+                                        read_manifest, read_plain, read_wavcaps)
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_AUDIOCAPS = Path(datasetfixture.SHARED_AUDIOCAPS)

@@ -17,7 +17,7 @@ import soundfile as sf
 
 from bankfixtures import make_tau_db
 from datasetfixture import make_dataset
-from tsel_data import atomic
+from tsel_data.core import atomic
 from tsel_data.store import writer
 
 
@@ -84,7 +84,7 @@ def test_a_stop_signal_while_pool_workers_start_is_no_traceback(tmp_path):
     # raised in the parent's at-fork hooks, printed as "Exception ignored" with a traceback
     script = textwrap.dedent("""
         import os, signal
-        from tsel_data import executors as ex
+        from tsel_data.runtime import runner as ex
         sent = []
         def in_fork():
             if not sent:
@@ -199,7 +199,7 @@ def test_libsndfile_system_error_into_a_missing_folder_says_so(dataset, tsel_cli
         return real(path, what)
 
     monkeypatch.setattr(atomic, "atomic_output", folder_gone)
-    import tsel_data.audio as audio  # save_wav's own name for it
+    import tsel_data.corpus.audio as audio  # save_wav's own name for it
 
     monkeypatch.setattr(audio, "atomic_output", folder_gone)
     os.mkdir("gone")
@@ -305,7 +305,7 @@ def _session(sid: int) -> list[int]:
 
 @pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads the process table from /proc")
 def test_sighup_to_render_ends_its_pool_workers(small_config, tmp_path):
-    from tsel_data.pipeline import plan_dataset
+    from tsel_data.job.pipeline import plan_dataset
 
     out = str(tmp_path / "ds")
     plan_dataset(small_config(splits={"train": 16, "val": 0, "test": 0}), out)

@@ -7,13 +7,13 @@ import pytest
 
 from datasetfixture import plan_recipes
 from tsel_data.banks.scenes import resolve_bank
-from tsel_data.catalog import build_catalog
-from tsel_data.geometry import azimuth_difference, sph_to_cart
-from tsel_data.pipeline import generate, plan_dataset
-from tsel_data.plan import CatalogView, bank_request, plan_roots
+from tsel_data.plan.catalog import build_catalog
+from tsel_data.core.geometry import azimuth_difference, sph_to_cart
+from tsel_data.job.pipeline import generate, plan_dataset
+from tsel_data.plan.sampler import CatalogView, bank_request, plan_roots
 from tsel_data.store.layout import Layout
-from tsel_data.recipe import SceneRecipe
-from tsel_data.render import render_scene, source_labels
+from tsel_data.scene.recipe import SceneRecipe
+from tsel_data.render.mix import render_scene, source_labels
 
 
 def test_simulated_arcs_follow_their_speed(small_config, tmp_path):
@@ -105,9 +105,9 @@ def test_moving_source_audio_comes_from_its_labels(kind, small_config, tmp_path)
     frame's start and end (the frame's audio is a crossfade of the RIRs of the knots
     there, 4 degrees apart at 40 deg/s: a label one frame late is 4 degrees off, and fails)."""
     from tsel_data.acoustics import SOUND_SPEED
-    from tsel_data.geometry import sph_to_cart
+    from tsel_data.core.geometry import sph_to_cart
     from tsel_data.receivers import mic_positions
-    from tsel_data.render import spatial_images
+    from tsel_data.render.mix import spatial_images
     from test_render_physics import _lag
 
     cfg = small_config('scene.motion="moving"', f'scene.path="{kind}"', 'scene.scenario="two-directional"',
@@ -210,8 +210,8 @@ def test_tau_db_with_room_numbers(tmp_path, demo_corpus):
              for s in ("train", "val", "test")}
     assert rooms["train"] <= {"bomb_shelter", "gym"} and rooms["val"] == {"pb132"} and rooms["test"] == {"pc226"}
     # a measured room: size known, RT60 and the array's place in the room not
-    from tsel_data.pipeline import finalize, render_shards
-    from tsel_data.inspect import find_scene, summary
+    from tsel_data.job.pipeline import finalize, render_shards
+    from tsel_data.tools.inspect import find_scene, summary
 
     render_shards(out, progress=False)
     finalize(out)
@@ -228,7 +228,7 @@ def test_tau_db_with_room_numbers(tmp_path, demo_corpus):
 def test_moving_source_knots_share_one_late_tail():
     """Independent tails per knot would be crossfaded into a 3 dB dip between knots."""
     from tsel_data.acoustics import simulate_rirs
-    from tsel_data.geometry import Room
+    from tsel_data.core.geometry import Room
     from tsel_data.receivers import ArrayPose
 
     room, array = Room((8.0, 7.0, 3.5), 0.6), ArrayPose("mic4", (4.0, 3.5, 1.2), 0.0, 0.1)
@@ -271,7 +271,7 @@ def test_banks_holding_two_formats_are_used_in_the_configs_format(tmp_path, demo
     files serve scene.format = "tetra" and "foa" as they are, with no import."""
     from bankfixtures import make_sofa, make_tau_db
     from tsel_data.config import load_config
-    from tsel_data.geometry import sph_to_cart
+    from tsel_data.core.geometry import sph_to_cart
 
     make_tau_db(tmp_path / "TAU", rooms=(("bomb_shelter", 1), ("gym", 2), ("se203", 8), ("tb103", 9)), L=32)
     pos = sph_to_cart(np.arange(24) * 15.0 - 180.0, 0.0, 1.5)

@@ -12,10 +12,10 @@ from tsel_data.acoustics.image_paths import GROUPS
 from tsel_data.acoustics.reference import dense_image, image_part_timing
 from tsel_data.acoustics.shoebox import shoebox_rirs
 from tsel_data.choices import PathKind
-from tsel_data.geometry import Room
-from tsel_data.placement import knot_hop
+from tsel_data.core.geometry import Room
+from tsel_data.plan.placement import knot_hop
 from tsel_data.receivers import ArrayPose
-from tsel_data.render import moving_image_part
+from tsel_data.render.mix import moving_image_part
 
 FS = 24000
 DUR = 1.2

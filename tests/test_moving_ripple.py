@@ -4,21 +4,21 @@ Crossfading knot RIRs whose direct paths arrive at different times is a comb fil
 every midpoint between knots (a 1-sample difference is already -3 dB for white noise at
 the midpoint), so line passes and walks along linear bank trajectories dipped 1.5-2.5 dB
 every 100 ms. The renderer now aligns the direct paths and moves the direct path
-continuously (timevarying.py). Measured here: white noise through line passes in
+continuously (dsp/timevarying.py). Measured here: white noise through line passes in
 simulated rooms and along a synthetic linear bank trajectory, frame power folded over the
 knot cycle, broadband and per octave band 250 Hz - 8 kHz.
 """
 import numpy as np
 import pytest
 
-import tsel_data.timevarying as tv
+import tsel_data.dsp.timevarying as tv
 from tsel_data.acoustics import SOUND_SPEED, simulate_rirs
 from tsel_data.acoustics.metrics import RIPPLE_BANDS as BANDS
 from tsel_data.acoustics.metrics import knot_ripple
 from tsel_data.acoustics.shoebox import shoebox_rirs
-from tsel_data.geometry import Room, array_to_room, cart_to_sph, room_to_array
+from tsel_data.core.geometry import Room, array_to_room, cart_to_sph, room_to_array
 from tsel_data.receivers import ArrayPose
-from tsel_data.timevarying import render_moving
+from tsel_data.dsp.timevarying import render_moving
 
 FS = 24000
 
@@ -137,8 +137,8 @@ def test_a_line_pass_in_a_reverberant_room_keeps_its_level(case):
     sources in groups each aligned by its own delay, the worst planned line passes meet
     the goal with room to spare, where whole RIRs at 100 ms knots (the renderer's input
     before) do not."""
-    from tsel_data.placement import knot_hop
-    from tsel_data.render import path_image
+    from tsel_data.plan.placement import knot_hop
+    from tsel_data.render.mix import path_image
 
     room, arr, a, b, t_end = WORST_LINES[case]
     speed = np.linalg.norm(np.subtract(b, a)) / t_end
@@ -159,7 +159,7 @@ def test_the_shared_tail_apart_is_the_same_response():
     """tail_apart returns the image-source parts and the one tail the knots share: they sum
     to the whole RIRs bit for bit and the measured RT60 is the same; in image groups the
     parts are the same images, split (the groups sum to the ungrouped part)."""
-    from tsel_data.render import path_image
+    from tsel_data.render.mix import path_image
 
     room, centre = Room((8.0, 7.0, 4.0), 0.6), (4.0, 3.5, 1.2)
     t = np.arange(0.0, 2.1, 0.1)
@@ -194,7 +194,7 @@ def test_the_shared_tail_apart_is_the_same_response():
 def test_line_knots_follow_the_travel():
     """Knots at least every 100 ms, every 4° of azimuth and every 6 cm of travel
     (v = speed·distance), on arcs and lines alike."""
-    from tsel_data.placement import knot_hop
+    from tsel_data.plan.placement import knot_hop
 
     assert knot_hop("arc", 20.0, 1.0, 0.5) == pytest.approx(0.1)  # 4° of azimuth at 40°/s, 3.5 cm
     assert knot_hop("arc", 40.0, 1.0, 0.5) == pytest.approx(0.05)  # 4° of azimuth at 80°/s
@@ -397,8 +397,8 @@ def test_labels_follow_the_moving_direct_path():
     click emitted at each 100 ms label-frame centre arrives after the label's distance / c
     (labels: positions at frame centres, linear between knots, as interpolate_positions
     gives them), to a hundredth of a sample."""
-    from tsel_data.geometry import foa_gains
-    from tsel_data.timevarying import interpolate_positions
+    from tsel_data.core.geometry import foa_gains
+    from tsel_data.dsp.timevarying import interpolate_positions
 
     K = 31
     times = np.linspace(0.0, 3.0, K)

@@ -8,7 +8,7 @@ import pytest
 
 from ambiencefixtures import make_tau_snoise
 from bankfixtures import make_tau_db
-from tsel_data.ambience import omni_energy
+from tsel_data.corpus.ambience import omni_energy
 from tsel_data.errors import ConfigError
 
 FS = 24000
@@ -17,7 +17,7 @@ SMALL = ["audio.duration=2.0", "output.shard_size=4", 'scene.scenario="two-direc
 
 def _make(tmp, corpus, overrides, splits=None, preset="demo", bank=None):
     from tsel_data.config import load_config
-    from tsel_data.pipeline import generate
+    from tsel_data.job.pipeline import generate
 
     cfg = load_config(preset=preset, corpus_dir=corpus, bank=bank, overrides=SMALL + overrides,
                       splits=splits or {"train": 2, "val": 0, "test": 2})
@@ -27,8 +27,8 @@ def _make(tmp, corpus, overrides, splits=None, preset="demo", bank=None):
 
 def _noise_and_target(root, split, i):
     """The stored mixture's noise (mixture minus every source alone) and the target alone."""
-    from tsel_data.inspect import find_scene
-    from tsel_data.stems import dataset_roots, render_stems, scene_recipe
+    from tsel_data.tools.inspect import find_scene
+    from tsel_data.job.stems import dataset_roots, render_stems, scene_recipe
 
     scene = find_scene(root, f"{split}/{i}")
     recipe = scene_recipe(root, split, i, scene.scene_id)
@@ -51,7 +51,7 @@ def test_every_noise_is_at_its_snr_from_the_audio(noisy):
     each noise alone too (its record, its HDF5 column)."""
     import h5py
 
-    from tsel_data.recipe import read_plan
+    from tsel_data.scene.recipe import read_plan
 
     recipes = read_plan(f"{noisy}/plan/test.jsonl")
     for i in range(2):
@@ -86,10 +86,10 @@ def test_diffuse_noise_has_the_receivers_coherence(pose):
     from scipy.signal import csd, welch
 
     from tsel_data.acoustics.capsules import capsule_model
-    from tsel_data.geometry import SOUND_SPEED
-    from tsel_data.noise import noise_image
+    from tsel_data.core.geometry import SOUND_SPEED
+    from tsel_data.render.noise import noise_image
     from tsel_data.receivers import ArrayPose
-    from tsel_data.recipe import NoiseItem
+    from tsel_data.scene.recipe import NoiseItem
 
     arr = ArrayPose(pose[0], (3.0, 3.0, 1.5), 0.0, **pose[1])
     y = noise_image(NoiseItem("diffuse", 3, 20.0, spectrum="white"), arr, FS, 6 * FS, 6.0, 0.1, -30.0)
@@ -109,9 +109,9 @@ def test_diffuse_noise_has_the_receivers_coherence(pose):
 
 
 def test_pink_and_brown_noise_fall_by_3_and_6_db_an_octave():
-    from tsel_data.noise import noise_image
+    from tsel_data.render.noise import noise_image
     from tsel_data.receivers import ArrayPose
-    from tsel_data.recipe import NoiseItem
+    from tsel_data.scene.recipe import NoiseItem
 
     arr = ArrayPose("foa", (3.0, 3.0, 1.5), 0.0)
     for spectrum, slope in (("white", 0.0), ("pink", -3.0), ("brown", -6.0)):
@@ -136,7 +136,7 @@ def tau(tmp_path_factory):
 def test_ambience_segments_are_the_rooms_own_recording(tau, demo_corpus, tmp_path):
     """Bank scenes hear their room's ambience (TAU-SNoise_DB matched by name), the
     segment the record names, at its SNR."""
-    from tsel_data.ambience import read_segment
+    from tsel_data.corpus.ambience import read_segment
 
     root, truth = tau
     ds = _make(tmp_path / "ds", demo_corpus, [f'noise.ambience="{root / "TAU-SNoise_DB"}"', 'scene.format="foa"',
@@ -191,7 +191,7 @@ def test_tsel_check_names_a_missing_room_a_wrong_channel_count_and_rate(tau, dem
 
 
 def test_labels_still_agree_with_a_classical_localizer_at_30_db(tmp_path, demo_corpus):
-    from tsel_data.verify import verify_dataset
+    from tsel_data.tools.verify import verify_dataset
 
     root = _make(tmp_path / "ds", demo_corpus, ['noise.diffuse="pink"', "noise.diffuse_snr=30.0",
                                                 'noise.sensor="snr"', "noise.sensor_level=40.0"],

@@ -9,10 +9,10 @@ import pytest
 
 from tsel_data.config import load_config
 from tsel_data.errors import ConfigError
-from tsel_data.jsonable import jsonable
-from tsel_data.onthefly import SceneSource, epoch_seed, scene_source
-from tsel_data.pipeline import generate
-from tsel_data.plan import plan_scene
+from tsel_data.core.jsonable import jsonable
+from tsel_data.job.onthefly import SceneSource, epoch_seed, scene_source
+from tsel_data.job.pipeline import generate
+from tsel_data.plan.sampler import plan_scene
 from tsel_data.store.reader import open_dataset
 
 

@@ -10,13 +10,13 @@ import h5py
 import numpy as np
 import pytest
 
-from tsel_data.captions import CaptionIndex, jaccard, stems, tokens
-from tsel_data.catalog import build_catalog
+from tsel_data.corpus.captions import CaptionIndex, jaccard, stems, tokens
+from tsel_data.plan.catalog import build_catalog
 from tsel_data.config import load_config
 from tsel_data.errors import ConfigError
-from tsel_data.onthefly import SceneSource
-from tsel_data.pipeline import generate
-from tsel_data.plan import CatalogView, plan_scene
+from tsel_data.job.onthefly import SceneSource
+from tsel_data.job.pipeline import generate
+from tsel_data.plan.sampler import CatalogView, plan_scene
 from tsel_data.store.reader import open_dataset
 from datasetfixture import SHARED_AUDIOCAPS as AUDIOCAPS, plan_recipes
 from test_onthefly import assert_same_scene
@@ -62,7 +62,7 @@ def test_embeddings_measure_reads_an_npz_and_names_missing_captions(tmp_path):
     flat = [c for caps in CAPS for c in caps]
     vecs = np.random.default_rng(1).standard_normal((len(flat), 8)).astype(np.float32)
     np.savez(tmp_path / "e.npz", captions=np.array(flat), vectors=vecs)
-    from tsel_data.captions import load_embeddings
+    from tsel_data.corpus.captions import load_embeddings
 
     emb = load_embeddings(str(tmp_path / "e.npz"))
     ix = CaptionIndex(CAPS, "embeddings", emb)
@@ -94,7 +94,7 @@ def test_default_settings_plan_what_they_always_planned(small_config):
 
 
 def test_query_plans_are_the_same_for_any_worker_count(small_config):
-    from tsel_data.plan import plan_split_json
+    from tsel_data.plan.sampler import plan_split_json
 
     cfg = small_config('scene.similarity="tfidf"', 'scene.pairing="hard"', "scene.same_kind_distractors=0.3",
                        'scene.query=["choose", ["caption", "relational", "composite"]]',
@@ -229,7 +229,7 @@ def test_real_audiocaps_pairing_plans_fast(tmp_path, pairing):
     speed of random pairing: the TF-IDF index is built once, bands are drawn in batches."""
     for name in ("train", "val", "test"):
         os.symlink(os.path.abspath(os.path.join(AUDIOCAPS, f"{name}.csv")), tmp_path / f"{name}.csv")
-    from tsel_data.plan import prepare_views
+    from tsel_data.plan.sampler import prepare_views
     from tsel_data.store.layout import Layout
 
     def run(*over):
@@ -249,7 +249,7 @@ def test_real_audiocaps_pairing_plans_fast(tmp_path, pairing):
 
 def test_embeddings_from_a_file_plan_scenes(small_config, tmp_path, demo_corpus):
     """corpus.caption_embeddings: any vectors for every caption (here: made up) plan scenes."""
-    from tsel_data.embeddings import corpus_captions, write_embeddings
+    from tsel_data.plan.embeddings import corpus_captions, write_embeddings
 
     cfg = small_config(splits={"train": 4, "val": 0, "test": 0})
     caps = corpus_captions(cfg, str(tmp_path))
@@ -284,7 +284,7 @@ def test_embed_command_with_minilm(tmp_path, demo_corpus, small_config):
     with pytest.raises(SystemExit) as e:
         main(["corpus", "embed", "--preset", "demo", "--corpus-dir", demo_corpus, "--out", out])
     assert e.value.code == 0
-    from tsel_data.captions import CaptionIndex, load_embeddings
+    from tsel_data.corpus.captions import CaptionIndex, load_embeddings
 
     vec = load_embeddings(out)
     ix = CaptionIndex([("A dog barks",), ("Barking of a dog",), ("Rain falls steadily",)], "embeddings", vec)

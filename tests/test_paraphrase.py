@@ -4,11 +4,11 @@ clip its caption also describes, while ``none`` (the paper's random pairing) can
 import numpy as np
 import pytest
 
-from tsel_data.captions import CaptionIndex, answerable_queries, caption_sets, set_similarity
-from tsel_data.clip import Clip
+from tsel_data.corpus.captions import CaptionIndex, answerable_queries, caption_sets, set_similarity
+from tsel_data.corpus.clip import Clip
 from tsel_data.config import load_config
-from tsel_data.lexicon import concepts, lemma
-from tsel_data.plan import CatalogView, plan_scene
+from tsel_data.corpus.lexicon import concepts, lemma
+from tsel_data.plan.sampler import CatalogView, plan_scene
 
 GUARD = load_config(preset="demo").scene.caption_similarity
 

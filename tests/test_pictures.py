@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from datasetfixture import make_dataset
-from tsel_data.inspect import find_scene
-from tsel_data.picture import AZIMUTH_LIMITS, scene_figure
+from tsel_data.tools.inspect import find_scene
+from tsel_data.tools.picture import AZIMUTH_LIMITS, scene_figure
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -95,7 +95,7 @@ def test_every_scene_has_an_array_centred_view(ds, figure):
     polar = next(ax for ax in fig.axes if ax.name == "polar")
     assert polar.get_ylim()[0] == 0.0 and polar.get_ylim()[1] > np.nanmax(scene.distance)
     assert any("2: interferer (additive, no position)" in t for t in _texts(fig))
-    from tsel_data.picture import thumbnail_figure
+    from tsel_data.tools.picture import thumbnail_figure
 
     thumb = thumbnail_figure(scene)
     assert "+1 additive" in _texts(thumb)  # the sheet's picture says what it cannot draw
@@ -179,7 +179,7 @@ def test_picture_sheet_and_usage(ds, tsel_cli, tmp_path):
 
 
 def test_sheet_choice_and_words():
-    from tsel_data.sheet import pick, side
+    from tsel_data.tools.sheet import pick, side
 
     assert pick({"a": 2, "b": 1}, 24) == [("a", 0), ("a", 1), ("b", 0)]
     assert pick({"a": 10, "b": 10}, 4) == [("a", 0), ("a", 6), ("b", 3), ("b", 9)]

@@ -8,8 +8,8 @@ import h5py
 import numpy as np
 import pytest
 
-from tsel_data.pipeline import finalize, generate, render_shards
-from tsel_data.digest import sha256_file
+from tsel_data.job.pipeline import finalize, generate, render_shards
+from tsel_data.core.digest import sha256_file
 
 
 def _files(d):

@@ -4,12 +4,12 @@ import time
 import numpy as np
 import pytest
 
-from tsel_data.captions import caption_sets, max_similarity
-from tsel_data.catalog import build_catalog
-from tsel_data.geometry import cart_to_sph, room_to_array, azimuth_difference
+from tsel_data.corpus.captions import caption_sets, max_similarity
+from tsel_data.plan.catalog import build_catalog
+from tsel_data.core.geometry import cart_to_sph, room_to_array, azimuth_difference
 from datasetfixture import SHARED_AUDIOCAPS as AUDIOCAPS, plan_recipes
-from tsel_data.plan import CatalogView, plan_scene, plan_split_json
-from tsel_data.recipe import SceneRecipe
+from tsel_data.plan.sampler import CatalogView, plan_scene, plan_split_json
+from tsel_data.scene.recipe import SceneRecipe
 
 
 
@@ -83,7 +83,7 @@ def test_more_interferers(small_config, tmp_path):
 def test_real_audiocaps_manifests_plan(tmp_path):
     """The real manifests parse and plan at scale (audio files are not needed to plan)."""
     from tsel_data.config import load_config
-    from tsel_data.pipeline import plan_dataset
+    from tsel_data.job.pipeline import plan_dataset
 
     for name in ("train", "val", "test"):
         os.symlink(os.path.abspath(os.path.join(AUDIOCAPS, f"{name}.csv")), tmp_path / f"{name}.csv")

@@ -8,12 +8,12 @@ import shutil
 
 import pytest
 
-import tsel_data.pipeline as pipeline
-import tsel_data.shards as shards
+import tsel_data.job.pipeline as pipeline
+import tsel_data.job.shards as shards
 from tsel_data.config import load_config
 from tsel_data.errors import DatasetError
-from tsel_data.pipeline import generate, plan_dataset
-from tsel_data.shards import finalize, open_plan, render_shards
+from tsel_data.job.pipeline import generate, plan_dataset
+from tsel_data.job.shards import finalize, open_plan, render_shards
 from tsel_data.store import plans as store_plans
 from tsel_data.store.check import check_dataset
 

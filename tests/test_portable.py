@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from tsel_data.errors import DatasetError
-from tsel_data.pipeline import finalize, plan_dataset, render_shards
+from tsel_data.job.pipeline import finalize, plan_dataset, render_shards
 
 SETS = ["audio.duration=1.0", "audio.fs=8000", "output.shard_size=2", 'room.rt60=["uniform", 0.2, 0.3]']
 SPLITS = ["--split", "train=4", "--split", "val=0", "--split", "test=2"]

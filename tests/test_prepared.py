@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from tsel_data import audio, prepared
+from tsel_data.corpus import audio, prepared
 from tsel_data.config import load_config
 from tsel_data.errors import AudioError, DatasetError
-from tsel_data.pipeline import generate
-from tsel_data.digest import sha256_file
+from tsel_data.job.pipeline import generate
+from tsel_data.core.digest import sha256_file
 
 
 def _stereo_44k_corpus(src, dst):
@@ -142,7 +142,7 @@ def test_tsel_check_refuses_a_changed_prepared_clip(tmp_path, decoded, tsel_cli)
     cfg = _config(corpus)
     args = ["check", "--preset", "demo", "--corpus-dir", corpus, "--split", "train=3", "--split", "val=0",
             "--split", "test=0", "--set", "audio.duration=2.0"]
-    from tsel_data.catalog import build_catalog, prepare_corpus
+    from tsel_data.plan.catalog import build_catalog, prepare_corpus
     clips = build_catalog(_config(corpus, "corpus.prepare_on_check=false"), corpus).clips
     victim = clips["train"][0]
     st = prepared.stamp_of(os.stat(victim.audio))
@@ -207,7 +207,7 @@ def test_a_prepared_clip_without_a_readable_record_is_never_used(tmp_path, recor
 
 
 def test_a_remembered_clip_check_still_prepares_the_clip(tmp_path, decoded):
-    from tsel_data.catalog import build_catalog, check_clips
+    from tsel_data.plan.catalog import build_catalog, check_clips
 
     corpus = shutil.copytree(decoded[0], str(tmp_path / "corpus"))
     cfg = _config(corpus)

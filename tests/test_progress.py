@@ -13,9 +13,9 @@ import datasetfixture
 @pytest.fixture
 def terminal(monkeypatch):
     """stderr counts as a terminal (bars show); capsys still captures it."""
-    import tsel_data.progress
+    import tsel_data.core.progress
 
-    monkeypatch.setattr(tsel_data.progress, "on_terminal", lambda: True)
+    monkeypatch.setattr(tsel_data.core.progress, "on_terminal", lambda: True)
 
 
 def cli(capsys, *args) -> tuple[int, str, str]:

@@ -14,13 +14,13 @@ import re
 import numpy as np
 import pytest
 
-from tsel_data.audio import load_clip_cached
+from tsel_data.corpus.audio import load_clip_cached
 from tsel_data.config import load_config
-from tsel_data.demo.sounds import SOUND_TYPES
-from tsel_data.geometry import sph_to_cart
-from tsel_data.onthefly import SceneSource
-from tsel_data.queries import COMPOSITE_WORDINGS, WORDINGS
-from tsel_data.render import spatial_images
+from tsel_data.corpus.demo.sounds import SOUND_TYPES
+from tsel_data.core.geometry import sph_to_cart
+from tsel_data.job.onthefly import SceneSource
+from tsel_data.scene.queries import COMPOSITE_WORDINGS, WORDINGS
+from tsel_data.render.mix import spatial_images
 
 KIND_OF = {c: t.name for t in SOUND_TYPES for c in t.captions}
 FAST = ["audio.duration=3.0", 'room.rt60=["uniform", 0.3, 0.4]', 'scene.similarity="tfidf"']
@@ -159,7 +159,7 @@ def test_same_kind_scenes_get_a_true_composite_or_relational_query(demo_corpus, 
 
 def test_wordings_are_varied_and_fill_in():
     assert all(len(w) >= 3 for w in WORDINGS.values()) and len(COMPOSITE_WORDINGS) >= 3
-    from tsel_data.queries import composite_wordings, relational_wordings
+    from tsel_data.scene.queries import composite_wordings, relational_wordings
 
     assert relational_wordings("heard_at", {"time": 2.3})[0] == "the sound heard at 2.3 seconds"
     two = composite_wordings("loudest", "A dog barks.", 2, {})
@@ -175,7 +175,7 @@ def test_cli_generates_true_queries_and_tools_break_results_down(demo_corpus, tm
     import json
 
     from tsel_data.cli import main
-    from tsel_data.evaluate import write_predictions
+    from tsel_data.tools.evaluate import write_predictions
     from tsel_data.store.reader import open_dataset
 
     out = str(tmp_path / "out")

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from datasetfixture import make_dataset
-from tsel_data import labels as L
+from tsel_data.tools import labels as L
 from tsel_data.errors import DatasetError
 from tsel_data.store import list_splits, open_dataset
 
@@ -92,7 +92,7 @@ def test_pickle_and_fork_safe(ds_dir):
 
 def test_torch_dataset_when_available(ds_dir):
     torch = pytest.importorskip("torch")
-    from tsel_data.torch import Dataset
+    from tsel_data.tools.torch import Dataset
 
     root, _ = ds_dir
     d = Dataset(root, "train")

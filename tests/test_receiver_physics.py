@@ -9,9 +9,9 @@ from hrtffixtures import make_hrtf_sofa
 from tsel_data.acoustics.capsules import capsule_model, spaced_csd
 from tsel_data.acoustics.shoebox import shoebox_rirs
 from tsel_data.acoustics.sphere import rigid_sphere_transfer
-from tsel_data.geometry import SOUND_SPEED, Room, array_to_room, azimuth_difference, sph_to_cart
+from tsel_data.core.geometry import SOUND_SPEED, Room, array_to_room, azimuth_difference, sph_to_cart
 from tsel_data.receivers import ArrayPose
-from tsel_data.verify import doa_maps, fold_front_back, lateral_angle, vote_histogram
+from tsel_data.tools.verify import doa_maps, fold_front_back, lateral_angle, vote_histogram
 
 FS = 24000
 FREE = Room((30.0, 30.0, 30.0), 0.5)  # with max_order = 0: the free field

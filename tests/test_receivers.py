@@ -4,7 +4,7 @@ import pytest
 
 from tsel_data import errors as rx_errors
 from tsel_data import receivers as rx
-from tsel_data.geometry import cart_to_sph
+from tsel_data.core.geometry import cart_to_sph
 
 
 def test_mic4_layout():

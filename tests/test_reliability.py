@@ -24,15 +24,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tsel_data.config import check_raw_config
-from tsel_data.preflight import check_config
+from tsel_data.job.preflight import check_config
 from tsel_data.store.check import check_dataset
 from tsel_data.config import SECTIONS, TOP_KEYS, SplitConfig, load_config, parse_config
-from tsel_data.distributions import KINDS
+from tsel_data.scene.distributions import KINDS
 from tsel_data.errors import ConfigError, DatasetError, GeometryError
-from tsel_data.pipeline import finalize, generate, plan_dataset, render_shards
-from tsel_data import atomic
+from tsel_data.job.pipeline import finalize, generate, plan_dataset, render_shards
+from tsel_data.core import atomic
 from tsel_data.store import writer
-from tsel_data.digest import sha256_file
+from tsel_data.core.digest import sha256_file
 
 BOOT = ("from tsel_data.cli import cli, main\n"
         "if 'check' not in cli.commands:\n"
@@ -384,8 +384,8 @@ def test_shards_rendered_in_reverse_order_give_the_same_bytes(cfg, dataset, tmp_
 
 
 def test_plan_is_the_same_on_any_number_of_workers(cfg):
-    from tsel_data.catalog import build_catalog
-    from tsel_data.plan import CatalogView, plan_split_json
+    from tsel_data.plan.catalog import build_catalog
+    from tsel_data.plan.sampler import CatalogView, plan_split_json
 
     big = load_config(preset="demo", corpus_dir=cfg.corpus.dir, splits={"train": 300, "val": 0, "test": 0})
     cat = CatalogView(build_catalog(big, big.corpus.dir).clips["train"])
@@ -406,7 +406,7 @@ def _rss_bytes() -> int:
 @pytest.mark.slow
 @pytest.mark.skipif(not os.path.exists("/proc/self/statm"), reason="needs /proc")
 def test_soak_2000_scenes_memory_stays_flat(demo_corpus, tmp_path, monkeypatch):
-    import tsel_data.shards as gen
+    import tsel_data.job.shards as gen
 
     cfg = load_config(preset="demo", corpus_dir=demo_corpus, splits={"train": 2000, "val": 0, "test": 0},
                       overrides=["audio.duration=1.0", "audio.fs=8000", "output.shard_size=20",
@@ -471,7 +471,7 @@ _raw = st.one_of(
     st.dictionaries(st.one_of(st.sampled_from(TOP_KEYS), st.text(max_size=6)), _value, max_size=4),
 )
 PROPERTY = settings(max_examples=400, deadline=None, suppress_health_check=list(HealthCheck))
-_DEMO = tomllib.loads((resources.files("tsel_data.presets") / "demo.toml").read_text(encoding="utf-8"))
+_DEMO = tomllib.loads((resources.files("tsel_data.config.presets") / "demo.toml").read_text(encoding="utf-8"))
 _KEYS = ([(s, f.name) for s, c in SECTIONS.items() for f in fields(c)]
          + [(None, "seed"), (None, "on_bad_clip"), (None, "name"), ("splits.train", "count"),
             ("splits.train", "manifest"), ("splits.val", "rooms")])

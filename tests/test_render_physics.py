@@ -4,10 +4,10 @@ import pytest
 
 from tsel_data.acoustics import SOUND_SPEED
 from tsel_data.acoustics.pyroom import pyroom_rirs
-from tsel_data.geometry import Room, sph_to_cart
+from tsel_data.core.geometry import Room, sph_to_cart
 from tsel_data.receivers import ArrayPose, mic_positions
-from tsel_data.recipe import SceneRecipe, Source
-from tsel_data.render import convolve, source_labels
+from tsel_data.scene.recipe import SceneRecipe, Source
+from tsel_data.render.mix import convolve, source_labels
 
 FS = 24000
 
@@ -52,7 +52,7 @@ def test_anechoic_mic_lags_match_labelled_direction(az_room, yaw):
 
 def test_direct_path_delay_and_gain():
     r = _recipe(45.0, 0.0, side=0.1)
-    from tsel_data.geometry import array_to_room
+    from tsel_data.core.geometry import array_to_room
 
     near, far = (6.0, 5.0, 1.5), (9.0, 5.0, 1.5)  # 1 m and 4 m in front of the array
     rirs = pyroom_rirs(r.room, r.array, np.array([near, far]), FS, max_order=0).rirs
@@ -125,7 +125,7 @@ def test_a_diffuse_additive_source_is_diffuse_at_every_window(pose):
     coherent at long windows); the clip's level per label frame stays its own."""
     from tsel_data.acoustics.capsules import capsule_model
     from tsel_data.acoustics.diffuse import diffuse_image
-    from tsel_data.geometry import SOUND_SPEED
+    from tsel_data.core.geometry import SOUND_SPEED
     from tsel_data.receivers import ArrayPose
 
     fs = 24000

@@ -5,7 +5,7 @@ import pytest
 
 from tsel_data.acoustics import SOUND_SPEED, simulate_rirs
 from tsel_data.errors import GeometryError
-from tsel_data.geometry import Room, array_to_room
+from tsel_data.core.geometry import Room, array_to_room
 from tsel_data.receivers import ArrayPose
 
 FS = 24000

@@ -1,4 +1,4 @@
-"""The DCASE 2024 SELD metrics (tsel_data/seld.py) on hand-computed cases, and `tsel eval
+"""The DCASE 2024 SELD metrics (tsel_data/tools/seld.py) on hand-computed cases, and `tsel eval
 --dcase` on a DCASE export scored against itself."""
 import math
 import os
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from datasetfixture import make_dataset
-from tsel_data.seld import SeldAccumulator, angular_distance, frames_of
+from tsel_data.tools.seld import SeldAccumulator, angular_distance, frames_of
 
 
 def _score(frames_ref, frames_pred):

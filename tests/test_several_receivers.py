@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from tsel_data.audio import active_rms, db
+from tsel_data.corpus.audio import active_rms, db
 from tsel_data.errors import ConfigError, DatasetError
 
 RECEIVERS = ["foa", "tetra", "respeaker-6"]
@@ -17,7 +17,7 @@ RECEIVERS = ["foa", "tetra", "respeaker-6"]
 @pytest.fixture(scope="module")
 def made(tmp_path_factory, demo_corpus):
     from tsel_data.config import load_config
-    from tsel_data.pipeline import generate
+    from tsel_data.job.pipeline import generate
 
     out = tmp_path_factory.mktemp("several") / "ds"
     cfg = load_config(preset="demo", corpus_dir=demo_corpus, splits={"train": 3, "val": 0, "test": 2},
@@ -48,8 +48,8 @@ def test_levels_are_set_on_the_first_receiver_and_kept_for_the_others(made):
     """The target's image on the first receiver's channels is at target_level_dbfs; the
     gains are the same for every receiver (the record's, one per source)."""
     from tsel_data import open_dataset
-    from tsel_data.inspect import find_scene
-    from tsel_data.stems import dataset_roots, render_stems, scene_recipe
+    from tsel_data.tools.inspect import find_scene
+    from tsel_data.job.stems import dataset_roots, render_stems, scene_recipe
 
     scene = find_scene(made, "test/0")
     recipe = scene_recipe(made, "test", 0, scene.scene_id)
@@ -70,9 +70,9 @@ def test_the_first_receiver_sounds_as_it_would_alone(made):
     scaled only by the shared clipping guard."""
     from dataclasses import replace
 
-    from tsel_data.inspect import find_scene
-    from tsel_data.render import render_scene
-    from tsel_data.stems import dataset_roots, scene_recipe
+    from tsel_data.tools.inspect import find_scene
+    from tsel_data.render.mix import render_scene
+    from tsel_data.job.stems import dataset_roots, scene_recipe
 
     scene = find_scene(made, "train/1")
     recipe = scene_recipe(made, "train", 1, scene.scene_id)
@@ -136,7 +136,7 @@ def test_an_export_holds_the_receiver_asked_for(made, tmp_path, capsys):
     names; the default is the first receiver; an unknown one is one line, exit 2."""
     from tsel_data import open_dataset
     from tsel_data.export import export
-    from tsel_data.export.webdataset import iter_members
+    from tsel_data.formats.webdataset import iter_members
     from test_explain import one_line_error
 
     for name, want in ((None, "mic4"), ("foa", "foa"), ("respeaker-6", "respeaker-6")):

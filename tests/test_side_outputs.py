@@ -10,7 +10,7 @@ import pytest
 
 from bankfixtures import make_tau_db
 from datasetfixture import make_dataset
-from tsel_data.digest import sha256_file
+from tsel_data.core.digest import sha256_file
 from tsel_data.store.outputs import REGISTRY_FILE
 
 

@@ -17,7 +17,7 @@ import h5py
 import pytest
 
 from tsel_data.config import load_config
-from tsel_data.pipeline import finalize, generate, plan_dataset, render_shards
+from tsel_data.job.pipeline import finalize, generate, plan_dataset, render_shards
 from test_reliability import tmp_files
 from test_trust import _alive, _children, data_files
 
@@ -281,7 +281,7 @@ def test_a_stop_while_planning_is_at_once_and_writes_no_plan(demo_corpus, tmp_pa
 
 @pytest.mark.slow
 def test_corpus_prepare_finishes_the_clips_in_flight_then_stops(tmp_path):
-    from tsel_data.demo import synth_corpus
+    from tsel_data.corpus.demo import synth_corpus
 
     corpus = str(tmp_path / "corpus")
     synth_corpus(corpus, seed=1, clips_per_type=(6, 1, 1))
@@ -330,8 +330,8 @@ def test_the_dask_local_cluster_is_closed_on_a_stop(cfg, reference, tmp_path):
 DATALOADER = textwrap.dedent("""
     import sys
     import torch
-    from tsel_data.onthefly import scene_source
-    from tsel_data.torch import Dataset, collate, worker_init_fn
+    from tsel_data.job.onthefly import scene_source
+    from tsel_data.tools.torch import Dataset, collate, worker_init_fn
 
     source = scene_source(preset="demo", split="train", home=sys.argv[1], corpus_dir=sys.argv[2],
                           splits={"train": 400, "val": 0, "test": 0}, overrides=["audio.duration=3.0"])

@@ -14,7 +14,7 @@ from tsel_data.acoustics.sphere import (
     rigid_sphere_transfer,
     sphere_rows,
 )
-from tsel_data.geometry import SOUND_SPEED
+from tsel_data.core.geometry import SOUND_SPEED
 
 R = 0.042  # m, the DCASE tetra sphere
 C = SOUND_SPEED

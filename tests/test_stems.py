@@ -10,7 +10,7 @@ import soundfile as sf
 @pytest.fixture(scope="module")
 def made(tmp_path_factory, demo_corpus):
     from tsel_data.config import load_config
-    from tsel_data.pipeline import generate
+    from tsel_data.job.pipeline import generate
 
     out = tmp_path_factory.mktemp("stems") / "ds"
     cfg = load_config(preset="demo", overrides=["audio.duration=1.0", "audio.fs=16000", "output.shard_size=4"],
@@ -20,8 +20,8 @@ def made(tmp_path_factory, demo_corpus):
 
 
 def test_stems_add_up_to_the_stored_mixture(made):
-    from tsel_data.inspect import find_scene
-    from tsel_data.stems import dataset_roots, render_stems, scene_recipe
+    from tsel_data.tools.inspect import find_scene
+    from tsel_data.job.stems import dataset_roots, render_stems, scene_recipe
 
     for i in range(3):
         scene = find_scene(str(made), f"test/{i}")
@@ -47,14 +47,14 @@ def test_inspect_wav_writes_stereo_and_stems(made, tmp_path, capsys):
 
 
 def test_stems_need_the_clips(made, tmp_path, capsys, demo_corpus, monkeypatch):
-    import tsel_data.audio
+    import tsel_data.corpus.audio
     from tsel_data.cli import main
 
     def gone(path, *a, **k):
-        raise tsel_data.audio.AudioError(f"cannot read audio {path}: No such file; check the file or remove it "
+        raise tsel_data.corpus.audio.AudioError(f"cannot read audio {path}: No such file; check the file or remove it "
                                          f"from the manifest")
 
-    monkeypatch.setattr(tsel_data.render, "load_clip_cached", gone)
+    monkeypatch.setattr(tsel_data.render.mix, "load_clip_cached", gone)
     with pytest.raises(SystemExit) as e:
         main(["inspect", str(made), "test/1", "--wav", str(tmp_path / "s.wav")])
     out = capsys.readouterr()
@@ -66,8 +66,8 @@ def test_the_documented_call_finds_the_clips_from_the_dataset(made, tmp_path, mo
     """docs/commands/inspect.md: render_stems(scene_recipe(DIR, ...), scene.audio), no roots,
     from any folder: the recipe names its clips where they are on this machine."""
     from tsel_data.errors import DatasetError
-    from tsel_data.inspect import find_scene
-    from tsel_data.stems import render_stems, scene_recipe
+    from tsel_data.tools.inspect import find_scene
+    from tsel_data.job.stems import render_stems, scene_recipe
 
     monkeypatch.chdir(tmp_path)  # clip paths relative to the corpus must not be read from here
     scene = find_scene(str(made), "test/2")

@@ -12,7 +12,7 @@ import soundfile as sf
 from datasetfixture import make_scene
 from tsel_data.config import load_config
 from tsel_data.errors import DatasetError
-from tsel_data.pipeline import generate
+from tsel_data.job.pipeline import generate
 from tsel_data.store.codings import INT16_SCALE, decode, encode, to_int16
 from tsel_data.store.dataset import shard_attrs
 from tsel_data.store.reader import open_dataset
@@ -127,7 +127,7 @@ def test_plan_ranges_are_read_across_block_boundaries(tmp_path):
 
 def test_a_job_array_task_reads_only_its_shards_recipes(tmp_path, small_config):
     from tsel_data.errors import DatasetError
-    from tsel_data.pipeline import plan_dataset, render_shards
+    from tsel_data.job.pipeline import plan_dataset, render_shards
     from tsel_data.store.layout import Layout
 
     cfg = small_config("output.shard_size=2", "audio.duration=1.0", splits={"train": 6, "val": 0, "test": 0})

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-import tsel_data.timevarying as tv
-from tsel_data.geometry import foa_gains
-from tsel_data.timevarying import interpolate_positions, render_moving, render_static
+import tsel_data.dsp.timevarying as tv
+from tsel_data.core.geometry import foa_gains
+from tsel_data.dsp.timevarying import interpolate_positions, render_moving, render_static
 
 FS = 8000
 
@@ -272,7 +272,7 @@ def test_rirs_as_a_list_of_read_only_views_render_the_same():
 @pytest.mark.parametrize("n", [8192, 4800, 1000])
 def test_fft_round_trip_on_padded_rows(n):
     """fft.empty pads power-of-two rows (ducc0 slows 2x on them otherwise); values are unaffected."""
-    from tsel_data import fft
+    from tsel_data.dsp import fft
 
     a = fft.empty((3, 5, n))
     assert a.shape == (3, 5, n) and (a.strides[-2] // 4 != n) == (n % 512 == 0)
@@ -283,7 +283,7 @@ def test_fft_round_trip_on_padded_rows(n):
 
 
 def test_the_stored_farrow_filters_are_their_design_and_delay_by_mu():
-    from tsel_data.delaypath import design_farrow, farrow_coefficients, fractional_kernel
+    from tsel_data.dsp.delaypath import design_farrow, farrow_coefficients, fractional_kernel
 
     np.testing.assert_allclose(farrow_coefficients(), design_farrow(), rtol=0, atol=1e-12)
     # the filter delays a band-limited tone by mu: -50 dB error below half the Nyquist

@@ -8,11 +8,11 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from tsel_data.captions import answerable_queries  # noqa: E402
+from tsel_data.corpus.captions import answerable_queries  # noqa: E402
 from tsel_data.config import load_config  # noqa: E402
-from tsel_data.jsonable import jsonable  # noqa: E402
-from tsel_data.onthefly import SceneSource  # noqa: E402
-from tsel_data.torch import Dataset, collate, worker_init_fn  # noqa: E402
+from tsel_data.core.jsonable import jsonable  # noqa: E402
+from tsel_data.job.onthefly import SceneSource  # noqa: E402
+from tsel_data.tools.torch import Dataset, collate, worker_init_fn  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -14,8 +14,8 @@ import soundfile as sf
 
 from tsel_data.config import load_config
 from tsel_data.errors import ConfigError, DatasetError
-from tsel_data.pipeline import finalize, generate, plan_dataset, render_shards
-from tsel_data.digest import sha256_file
+from tsel_data.job.pipeline import finalize, generate, plan_dataset, render_shards
+from tsel_data.core.digest import sha256_file
 from tsel_data.store.lock import DatasetLock
 from tsel_data.store.layout import Layout
 from tsel_data.store.reader import open_dataset

@@ -6,9 +6,9 @@ from click.testing import CliRunner
 
 from datasetfixture import make_dataset, plane_wave
 from tsel_data.cli.verify import verify_cmd
-from tsel_data.features import gcc_phat, mic_pairs
+from tsel_data.dsp.features import gcc_phat, mic_pairs
 from tsel_data.receivers import mic4_positions
-from tsel_data.verify import doa_maps, verify_dataset
+from tsel_data.tools.verify import doa_maps, verify_dataset
 
 
 @pytest.mark.parametrize("fmt", ["mic4", "foa", "tetra"])
@@ -57,7 +57,7 @@ def test_all_labels_rotated_agree_on_no_judged_scene(tmp_path):
 
 
 def test_a_source_that_never_plays_alone_is_not_judged(tmp_path):
-    from tsel_data.verify import verify_scene
+    from tsel_data.tools.verify import verify_scene
 
     s = _scene(tmp_path)
     s.active[:] = True  # both sources "always on": no frame where one plays alone
@@ -73,7 +73,7 @@ def test_a_source_that_never_plays_alone_is_not_judged(tmp_path):
 
 @pytest.mark.parametrize("fmt", ["mic4", "foa"])
 def test_tonal_and_low_frequency_sources_are_not_judged(tmp_path, fmt):
-    from tsel_data.verify import verify_scene
+    from tsel_data.tools.verify import verify_scene
 
     s = _scene(tmp_path, fmt)
     t = np.arange(s.audio.shape[1]) / s.fs
@@ -91,7 +91,7 @@ def test_tonal_and_low_frequency_sources_are_not_judged(tmp_path, fmt):
 def test_a_source_far_in_a_reverberant_room_is_not_judged(tmp_path):
     from dataclasses import replace
 
-    from tsel_data.verify import REVERB_RATIO, reverb_ratio, verify_scene
+    from tsel_data.tools.verify import REVERB_RATIO, reverb_ratio, verify_scene
 
     s = _scene(tmp_path)
     frames = np.flatnonzero(s.active[0])

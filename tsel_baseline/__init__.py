@@ -11,7 +11,7 @@ Modules, in the order data flows through them:
 - :mod:`~tsel_baseline.data`      scene source -> torch Dataset of features; cached tables; examples
 - :mod:`~tsel_baseline.model`     audio frames + text vector -> 360-class azimuth, per clip or per frame
 - :mod:`~tsel_baseline.train`     soft-label cross-entropy, best epoch by validation MAE
-- :mod:`~tsel_baseline.predict`   JSONL predictions, scored by tsel_data.evaluate
+- :mod:`~tsel_baseline.predict`   JSONL predictions, scored by tsel_data.tools.evaluate
 - :mod:`~tsel_baseline.experiment` the one-command experiment (docs/baseline.md)
 - :mod:`~tsel_baseline.diagnose`  its errors split by what the scenes hold (demo corpus)
 """

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tsel_data.features import mic_pairs
+from tsel_data.dsp.features import mic_pairs
 
 MIC4_AZIMUTHS = 45.0 + 90.0 * np.arange(4)  # docs/format.md: mic k at 45° + 90°·k
 

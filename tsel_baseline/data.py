@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from tsel_data.torch import worker_init_fn
+from tsel_data.tools.torch import worker_init_fn
 
 from .augment import apply, is_mic4_square, random_transform
 from .features import FeatureConfig, scene_features

@@ -4,7 +4,7 @@
 
 For the synthetic demo corpus only (it needs ``corpus/clips.json``, which names each
 clip's sound type and whether it is continuous or intermittent). For each measured row
-it groups the per-scene errors that :func:`tsel_data.evaluate.evaluate` returned (no
+it groups the per-scene errors that :func:`tsel_data.tools.evaluate.evaluate` returned (no
 metric of its own: a group's MAE is the mean of its scenes' errors, as evaluate pools
 clip units) by
 

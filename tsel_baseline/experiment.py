@@ -6,7 +6,7 @@ Steps (each skipped when its output is already there, so a re-run only redoes wh
 missing): a synthetic captioned corpus (``tsel corpus synth``), three datasets made with
 ``tsel generate`` from the paper's presets (scaled down, see ``DATASETS``), features once
 per split, one model per table row, predictions as JSONL scored by
-:func:`tsel_data.evaluate.evaluate`. Results: ``OUT/results.json`` and ``OUT/table.md``.
+:func:`tsel_data.tools.evaluate.evaluate`. Results: ``OUT/results.json`` and ``OUT/table.md``.
 """
 from __future__ import annotations
 

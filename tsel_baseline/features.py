@@ -3,7 +3,7 @@
 What the model sees of a scene (F = label frames, 100 for a 10 s scene at 0.1 s hop):
 
 - ``gcc``  float32 [P, F, 2·max_lag + 1]: the paper's GCC-PHAT of every mic pair
-  (:func:`tsel_data.features.gcc_phat`, n_fft 1024, hop 640, 96 lags), averaged over the
+  (:func:`tsel_data.dsp.features.gcc_phat`, n_fft 1024, hop 640, 96 lags), averaged over the
   STFT frames of each label frame and cropped to the lags a sound can actually take
   between two mics of the array (a 0.13 m square at 24 kHz: at most ±13 samples; the
   rest of the 96 lags only holds reverberation and noise).
@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from tsel_data.features import gcc_phat, mic_pairs, stft
+from tsel_data.dsp.features import gcc_phat, mic_pairs, stft
 from tsel_data.receivers import receiver
 
 SPEED_OF_SOUND = 343.0  # m/s

@@ -14,7 +14,7 @@ embeddings); the frame head gives one distribution per label frame for moving ta
 Frame MLPs rather than 2-D convolutions over the lag axis: a lag has an absolute
 meaning (a delay between two given mics), and the per-frame MLP costs a fraction of a
 convolution on 2 CPU cores. Bin k of the output is azimuth k degrees (the paper's 360
-classes, tsel_data.labels).
+classes, tsel_data.tools.labels).
 """
 from __future__ import annotations
 

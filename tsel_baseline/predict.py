@@ -1,4 +1,4 @@
-"""Predictions in the ``tsel eval`` format, scored only by :func:`tsel_data.evaluate.evaluate`.
+"""Predictions in the ``tsel eval`` format, scored only by :func:`tsel_data.tools.evaluate.evaluate`.
 
 One JSON line per scene: ``{"scene_id", "azimuth": float}`` from a clip-level model or
 ``{"scene_id", "azimuth": [F floats]}`` from a frame-level one (docs/reader.md).
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from tsel_data.evaluate import evaluate, write_predictions
+from tsel_data.tools.evaluate import evaluate, write_predictions
 
 from .data import Examples, example_list
 from .model import TselNet, decode
@@ -37,7 +37,7 @@ def predict(model: TselNet, source, text, queries: list[str] | None = None, batc
 
 
 def score(rows: list[dict], root: str, split: str, path: str):
-    """Write ``rows`` to ``path`` (JSONL) and score it with tsel_data.evaluate.evaluate."""
+    """Write ``rows`` to ``path`` (JSONL) and score it with tsel_data.tools.evaluate.evaluate."""
     write_predictions(path, rows)
     return evaluate(root, split, path)
 

@@ -1,6 +1,6 @@
 """Training: soft-label cross-entropy on the 360 azimuth classes, best epoch by validation MAE.
 
-Targets are the wrapped Gaussians of :func:`tsel_data.labels.gaussian_target` (σ
+Targets are the wrapped Gaussians of :func:`tsel_data.tools.labels.gaussian_target` (σ
 degrees): neighbouring classes are nearly right, which a one-hot target would not
 say. A frame-level model is trained on the frames where the chosen source is active
 (the frames the metric scores).
@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import torch
 
-from tsel_data.labels import gaussian_target
+from tsel_data.tools.labels import gaussian_target
 
 from .data import Examples, FeatureTable, example_list
 from .model import ModelConfig, build_model, pool_frames

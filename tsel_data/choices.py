@@ -168,7 +168,7 @@ class MissingClipPolicy(StrEnum):
 
 
 class Executor(StrEnum):
-    """Where shards render (executors.py)."""
+    """Where shards render (runtime/runner.py)."""
 
     LOCAL = "local"
     DASK = "dask"

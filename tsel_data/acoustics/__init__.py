@@ -12,7 +12,7 @@ and max order from ``inverse_sabine``, ``compute_rir``), and the project's own
 Import order: ``base`` (RirSet), then ``metrics``, ``highpass``, ``ism``, ``late``, then
 the methods ``shoebox`` and ``pyroom``, then ``simulate`` (the dispatcher).
 """
-from ..geometry import SOUND_SPEED
+from ..core.geometry import SOUND_SPEED
 from .base import RirSet
 from .simulate import RIR_METHODS, simulate_rirs
 

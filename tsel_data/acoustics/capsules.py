@@ -27,9 +27,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from .. import realfft as sfft  # scipy.fft's numbers without its import
 from ..choices import Baffle, ReceiverModel
-from ..geometry import SOUND_SPEED, array_to_room, foa_gains_of
+from ..core.geometry import SOUND_SPEED, array_to_room, foa_gains_of
+from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
 from ..receivers import ArrayPose
 from .ism import FD_PHASES, FD_TAPS, _split, add_impulses, fd_bank, grid_to_signal, new_grid
 from .late import FOA_DIFFUSE_GAINS, csd_noise, diffuse_coherence

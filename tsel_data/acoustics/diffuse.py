@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import realfft as sfft  # scipy.fft's numbers without its import
+from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
 
 TILE_S = 0.01  # about this long a tile (a power of two of samples); hop half, √Hann analysis and synthesis
 _CHUNK = 64  # frames mixed at a time: bounds memory for many channels

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..compiled import scipy_extension
+from ..core.compiled import scipy_extension
 
 
 def butter2_highpass(cutoff: float, fs: float) -> np.ndarray:

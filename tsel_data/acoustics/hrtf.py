@@ -2,9 +2,9 @@
 
 A scene's image sources are heard through the HRIR of their direction in the head
 frame, which is the array frame (x = front, y = left, z = up; the head's yaw is the
-array yaw; see geometry.py).
+array yaw; see core/geometry.py).
 
-Reading (:func:`read_hrtf`), with h5py (SOFA files are netCDF-4, i.e. HDF5):
+Reading (:func:`read_hrtf`, through :mod:`tsel_data.acoustics.sofa`; SOFA files are netCDF-4, i.e. HDF5):
 
 - Conventions: ``Conventions = "SOFA"`` and ``SOFAConventions = "SimpleFreeFieldHRIR"``.
   ``GeneralFIR`` is accepted too when it has R = 2 receivers, because several
@@ -78,13 +78,13 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 
-import h5py
 import numpy as np
 
-from .. import realfft as sfft  # scipy.fft's numbers without its import
+from ..core.geometry import sph_to_cart
+from ..core.h5str import as_str
+from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
 from ..errors import ConfigError
-from ..geometry import sph_to_cart
-from ..h5str import as_str
+from .sofa import in_listener_frame, open_sofa, position, rows_text
 
 HRIR_CONVENTIONS = ("SimpleFreeFieldHRIR", "GeneralFIR")
 MIN_DIRECTIONS = 6
@@ -160,11 +160,7 @@ def read_hrtf(path, fs: float | None = None) -> Hrtf:
         raise ConfigError(f"{path}: HRTF sampling rate {fs!r} is not a positive number of Hz; give the scene's fs")
     if not path.is_file():
         raise ConfigError(f"HRTF file {path} not found; check the path")
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise ConfigError(f"{path}: not a SOFA file (cannot be read as netCDF-4/HDF5); {_HOW}") from None
-    with f:
+    with open_sofa(path, ConfigError, f"cannot be read as netCDF-4/HDF5); {_HOW}") as f:
         fs_file, irs, delays, directions, name = _read_file(f, path)
     if delays is not None:
         irs = _apply_delays(irs, delays)
@@ -175,7 +171,7 @@ def read_hrtf(path, fs: float | None = None) -> Hrtf:
     return Hrtf(fs=fs_out, directions=directions, irs=irs, lead=lead, source=str(path), name=name)
 
 
-def _read_file(f: h5py.File, path: Path):
+def _read_file(f, path: Path):
     """(fs, irs float64 [M, 2, N] left first, delays [M, 2] or None, directions [M, 3], name)."""
     if as_str(f.attrs.get("Conventions")) != "SOFA":
         raise ConfigError(f"{path}: not a SOFA file (no Conventions = \"SOFA\" attribute); {_HOW}")
@@ -243,49 +239,19 @@ def _delays(f, M: int, path) -> np.ndarray | None:
     return np.broadcast_to(d, (M, 2)).copy()
 
 
-def _position(f, name: str, M: int, path, direction: bool = False) -> np.ndarray | None:
-    """A SOFA position variable as cartesian [M, 3] (a single row broadcast), or None.
-    direction=True ignores a spherical radius (unit vectors)."""
-    if name not in f:
-        return None
-    ds = f[name]
-    v = np.asarray(ds[()], dtype=np.float64)
-    v = v.reshape(1, -1) if v.ndim < 2 else v.reshape(-1, v.shape[-1])
-    if v.shape[-1] != 3 and v.shape[0] == 3:
-        v = v.T
-    if v.shape[0] not in (1, M) or v.shape[1] != 3:
-        raise ConfigError(f"{path}: {name} has shape {ds.shape}; expected [M or 1, 3]")
-    bad = np.nonzero(~np.all(np.isfinite(v), axis=1))[0]
-    if len(bad):
-        raise ConfigError(f"{path}: {name} has NaN or infinite values (rows {_rows(bad)}); "
-                          f"every measurement needs a position")
-    kind = as_str(ds.attrs.get("Type")).lower() or "cartesian"
-    if kind.startswith("spherical"):
-        rad = "rad" in as_str(ds.attrs.get("Units")).lower().split(",")[0]
-        ang = np.degrees(v[:, :2]) if rad else v[:, :2]
-        v = sph_to_cart(ang[:, 0], ang[:, 1], 1.0 if direction else v[:, 2])
-    elif not kind.startswith("cartesian"):
-        raise ConfigError(f"{path}: {name} has coordinate Type {kind!r}; expected cartesian or spherical")
-    return np.broadcast_to(v, (M, 3)).astype(np.float64)
-
-
 def _directions(f, M: int, path) -> np.ndarray:
-    lis = _position(f, "ListenerPosition", M, path)
+    lis = position(f, "ListenerPosition", M, path, ConfigError)
     at_origin = lis is None or not np.any(lis)
     # A spherical radius only matters when it is measured from somewhere else than the listener.
-    src = _position(f, "SourcePosition", M, path, direction=at_origin)
+    src = position(f, "SourcePosition", M, path, ConfigError, direction=at_origin)
     if src is None:
         raise ConfigError(f"{path}: no SourcePosition; the HRTF directions are missing")
     rel = src if at_origin else src - lis
-    view = _position(f, "ListenerView", M, path, direction=True)
-    if view is not None:
-        up = _position(f, "ListenerUp", M, path, direction=True)
-        up = np.tile([0.0, 0.0, 1.0], (M, 1)) if up is None else up
-        rel = np.einsum("mij,mi->mj", _frames(view, up, path), rel)
+    rel = in_listener_frame(f, rel, M, path, ConfigError)
     norm = np.linalg.norm(rel, axis=1)
     bad = np.nonzero(norm < 1e-9)[0]
     if len(bad):
-        raise ConfigError(f"{path}: SourcePosition coincides with ListenerPosition (rows {_rows(bad)}); "
+        raise ConfigError(f"{path}: SourcePosition coincides with ListenerPosition (rows {rows_text(bad)}); "
                           f"no direction to measure")
     u = rel / norm[:, None]
     n = len(np.unique(np.round(u, 6), axis=0))
@@ -293,17 +259,6 @@ def _directions(f, M: int, path) -> np.ndarray:
         raise ConfigError(f"{path}: only {n} distinct source directions; an HRTF set needs at least "
                           f"{MIN_DIRECTIONS} (a sphere or a ring of measurements)")
     return u
-
-
-def _frames(view, up, path) -> np.ndarray:
-    """Rotation matrices [M, 3, 3] whose columns are the head's x, y, z axes."""
-    x = view / np.linalg.norm(view, axis=1, keepdims=True)
-    z = up - np.sum(up * x, axis=1, keepdims=True) * x
-    nz = np.linalg.norm(z, axis=1, keepdims=True)
-    if np.any(nz < 1e-9) or not np.all(np.isfinite(x)):
-        raise ConfigError(f"{path}: ListenerView is zero or parallel to ListenerUp; fix the listener orientation")
-    z = z / nz
-    return np.stack([x, np.cross(z, x), z], axis=-1)
 
 
 def _left_first(f, path) -> bool:
@@ -323,11 +278,6 @@ def _left_first(f, path) -> bool:
         ang = np.degrees(v[:, :2]) if rad else v[:, :2]
         v = sph_to_cart(ang[:, 0], ang[:, 1], v[:, 2])
     return not (v[0, 1] < v[1, 1] - 1e-9)
-
-
-def _rows(idx) -> str:
-    idx = list(map(int, idx))
-    return ", ".join(map(str, idx[:5])) + (f", ... ({len(idx)} rows)" if len(idx) > 5 else "")
 
 
 def _apply_delays(irs: np.ndarray, delays: np.ndarray) -> np.ndarray:

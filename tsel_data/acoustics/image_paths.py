@@ -1,6 +1,6 @@
 """The image sources of a moving source, grouped by how their delays move.
 
-Between two knots the moving renderer (:mod:`tsel_data.timevarying`) crossfades the
+Between two knots the moving renderer (:mod:`tsel_data.dsp.timevarying`) crossfades the
 knots' RIRs after aligning them by one delay trajectory per channel, the warp. A
 reflection whose delay changes by δ samples more than the warp between two knots is
 crossfaded between two copies δ apart: a comb filter at the knot midpoints. With one
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import SOUND_SPEED
+from ..core.geometry import SOUND_SPEED
 from .ism import DIRECT_KEY, image_chunks, image_positions
 
 GROUPS = 4  # warps per moving source: the direct path's and three more

@@ -17,7 +17,7 @@ from typing import Iterator
 
 import numpy as np
 
-from .. import realfft as sfft  # scipy.fft's numbers without its import
+from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
 
 # Fractional-delay interpolator: a Kaiser-windowed sinc of FD_TAPS taps, tabulated at
 # FD_PHASES + 1 fractional positions and linearly interpolated between them. The

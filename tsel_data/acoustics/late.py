@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import realfft as sfft  # scipy.fft's numbers without its import
-from ..geometry import SOUND_SPEED
+from ..core.geometry import SOUND_SPEED
+from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
 
 FOA_DIFFUSE_GAINS = np.array([1.0, 1.0, 1.0, 1.0]) / np.sqrt([1.0, 3.0, 3.0, 3.0])
 

@@ -12,7 +12,7 @@ from itertools import combinations
 
 import numpy as np
 
-from ..geometry import SOUND_SPEED
+from ..core.geometry import SOUND_SPEED
 
 
 def edc(rir: np.ndarray) -> np.ndarray:

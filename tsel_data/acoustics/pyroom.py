@@ -25,8 +25,8 @@ from itertools import combinations
 import numpy as np
 import pyroomacoustics as pra
 
+from ..core.geometry import SOUND_SPEED, array_to_room
 from ..errors import GeometryError
-from ..geometry import SOUND_SPEED, array_to_room
 from .base import RirSet
 from .metrics import sabine_min_rt60
 

@@ -1,6 +1,6 @@
 """A moving source rendered the slow, plain way, to check the fast one against.
 
-The physics of a moving source (timevarying.py): a sound emitted at sample n goes
+The physics of a moving source (dsp/timevarying.py): a sound emitted at sample n goes
 through the RIR of where the source is at n. :func:`dense_image` samples that RIR every
 ``step`` seconds of the path (0.5 ms: a source at 2 m/s moves 1 mm, its reflections'
 delays a few hundredths of a sample) and weights the input by hat functions between
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import SOUND_SPEED
+from ..core.geometry import SOUND_SPEED
 from .shoebox import FADE, TRANSITION, shoebox_rirs
 
 BATCH = 256  # knots simulated at a time: memory stays ~ BATCH · C · L floats

@@ -30,8 +30,8 @@ from functools import lru_cache
 import numpy as np
 
 from ..choices import RirMethod
+from ..core.geometry import SOUND_SPEED
 from ..errors import GeometryError
-from ..geometry import SOUND_SPEED
 from .base import RirSet
 from .capsules import capsule_model
 from .highpass import butter2_highpass, sosfilt
@@ -62,8 +62,8 @@ def shoebox_rirs(
 ) -> RirSet:
     """RIRs from room-frame ``points`` [S, 3] (m) to the channels of ``array``.
 
-    room: :class:`~tsel_data.geometry.Room` (dims m, rt60 s). array:
-    :class:`~tsel_data.geometry.ArrayPose`. fs: Hz. method: ``hybrid`` | ``ism``. seed:
+    room: :class:`~tsel_data.core.geometry.Room` (dims m, rt60 s). array:
+    :class:`~tsel_data.core.geometry.ArrayPose`. fs: Hz. method: ``hybrid`` | ``ism``. seed:
     the late tail's noise (numpy Generator; ``ism`` is deterministic anyway).
     max_order: keep image sources with at most this many reflections (0 = free field);
     a finite order also drops the hybrid tail. transition: hybrid transition time (s),

@@ -44,8 +44,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from .. import realfft as sfft  # scipy.fft's numbers without its import
-from ..geometry import SOUND_SPEED
+from ..core.geometry import SOUND_SPEED
+from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
 
 MAX_ORDER = 4000  # refuse point sources so close to the surface that the series needs more
 

@@ -18,8 +18,8 @@ import os
 import numpy as np
 
 from ..acoustics import simulate_rirs
+from ..core.geometry import Room, array_to_room, sph_to_cart
 from ..errors import BankError, GeometryError
-from ..geometry import Room, array_to_room, sph_to_cart
 from ..receivers import ArrayPose, receiver
 from .base import MemoryBank, Trajectory, check_format
 from .native import write_bank

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import h5py
 
+from ..core.h5str import as_str
 from ..errors import BankError, broken_link
-from ..h5str import as_str
 from .base import Bank, check_format
 from .native import NativeBank, is_native_bank
 from .sofa import SofaBank

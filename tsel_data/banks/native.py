@@ -22,11 +22,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ..atomic import write_error
+from ..core.atomic import write_error
+from ..core.h5str import as_str, as_strs
 from ..errors import BankError, WriteError, shown_path
-from ..h5str import as_str, as_strs
-from .base import Bank, Trajectory, check_format, check_rate
 from ._h5 import H5Pool, read_rows
+from .base import Bank, Trajectory, check_format, check_rate
 from .plausible import positions_problem, rirs_problem
 
 VERSION = 1

@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.geometry import interpolate_positions, sph_to_cart
 from ..errors import BankError
-from ..geometry import interpolate_positions, sph_to_cart
 
 
 def angular_steps(positions) -> np.ndarray:

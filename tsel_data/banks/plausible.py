@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.geometry import array_to_room, sph_to_cart
 from ..errors import BankError, TselError
-from ..geometry import array_to_room, sph_to_cart
 from ..receivers import receiver
 
 MAX_DISTANCE_M = 100.0  # farther than any room's RIRs are measured (the TAU-SRIR DB's: 1-4 m)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from ..errors import BankError, ConfigError, TselError
 from ..receivers import receiver
-from ..recipe import BUILTIN_DEMO_BANK
+from ..scene.recipe import BUILTIN_DEMO_BANK
 from .build import DEMO, build_bank
 from .kinds import open_bank
 from .plausible import positions_problem, rirs_problem

@@ -32,12 +32,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry import cart_to_sph, sph_to_cart
-from ..receivers import canonical, receiver
+from ..acoustics.sofa import in_listener_frame, position
+from ..core.geometry import cart_to_sph, sph_to_cart
+from ..core.h5str import as_str
 from ..errors import BankError
-from ..h5str import as_str
-from .base import Bank, Trajectory, check_format, check_rate
+from ..receivers import canonical, receiver
 from ._h5 import H5Pool, read_rows
+from .base import Bank, Trajectory, check_format, check_rate
 from .paths import angular_steps
 from .tau import TAU_ROOM_NUMBERS
 
@@ -111,18 +112,16 @@ class SofaBank(Bank):
         if "Data.SamplingRate" not in f:
             raise BankError(f"{path}: no Data.SamplingRate")
         fs = check_rate(f["Data.SamplingRate"][()], f"{path}: Data.SamplingRate")
-        if "SourcePosition" not in f:
+        src = position(f, "SourcePosition", M, path, BankError)
+        if src is None:
             raise BankError(f"{path}: no SourcePosition; positions missing")
-        src = _positions(f["SourcePosition"], M, path)
-        lis = _positions(f["ListenerPosition"], M, path) if "ListenerPosition" in f else np.zeros((M, 3))
+        lis = position(f, "ListenerPosition", M, path, BankError)
+        lis = np.zeros((M, 3)) if lis is None else lis
         if listener_relative is None:
             tag = " ".join(as_str(f.attrs.get(k)) for k in ("Organization", "DatabaseName", "Comment")).lower()
             listener_relative = not any(s in tag for s in _SPATIALSCAPER)
         rel = src - lis if listener_relative else src
-        if "ListenerView" in f:
-            view = _positions(f["ListenerView"], M, path, direction=True)
-            up = _positions(f["ListenerUp"], M, path, direction=True) if "ListenerUp" in f else np.tile([0.0, 0.0, 1.0], (M, 1))
-            rel = np.einsum("mij,mi->mj", _frames(view, up, path), rel)
+        rel = in_listener_frame(f, rel, M, path, BankError)
         az, el, dist = cart_to_sph(rel)
         room = as_str(f.attrs.get("RoomShortName")) or _SUFFIX.sub("", path.stem)
         listener = as_str(f.attrs.get("ListenerShortName")).lower()
@@ -163,35 +162,6 @@ class SofaBank(Bank):
 
     def close(self):
         self._h5.close()
-
-
-def _positions(ds, M: int, path, direction: bool = False) -> np.ndarray:
-    """A SOFA position variable as cartesian [M, 3] (broadcasting a single row)."""
-    v = np.asarray(ds[()], dtype=np.float64)
-    v = v.reshape(-1, v.shape[-1]) if v.ndim > 1 else v.reshape(1, -1)
-    if v.shape[-1] != 3 and v.shape[0] == 3:
-        v = v.T
-    if v.shape[0] not in (1, M) or v.shape[1] != 3:
-        raise BankError(f"{path}: {ds.name.lstrip('/')} has shape {ds.shape}; expected [M or 1, 3]")
-    kind = as_str(ds.attrs.get("Type")).lower() or "cartesian"
-    if kind.startswith("spherical"):
-        units = as_str(ds.attrs.get("Units")).lower()
-        ang = v[:, :2] if "rad" not in units.split(",")[0] else np.degrees(v[:, :2])
-        v = sph_to_cart(ang[:, 0], ang[:, 1], 1.0 if direction else v[:, 2])
-    elif not kind.startswith("cartesian"):
-        raise BankError(f"{path}: {ds.name.lstrip('/')} has coordinate Type {kind!r}; expected cartesian or spherical")
-    return np.broadcast_to(v, (M, 3)).astype(np.float64)
-
-
-def _frames(view, up, path) -> np.ndarray:
-    """Rotation matrices [M, 3, 3] whose columns are the array's x, y, z axes."""
-    x = view / np.linalg.norm(view, axis=1, keepdims=True)
-    z = up - np.sum(up * x, axis=1, keepdims=True) * x
-    nz = np.linalg.norm(z, axis=1, keepdims=True)
-    if np.any(nz < 1e-9) or not np.all(np.isfinite(x)):
-        raise BankError(f"{path}: ListenerView is zero or parallel to ListenerUp")
-    z = z / nz
-    return np.stack([x, np.cross(z, x), z], axis=-1)
 
 
 def _group(room, pos: np.ndarray, grouping: str, tol: float):

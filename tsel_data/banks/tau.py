@@ -47,11 +47,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry import cart_to_sph
-from ..receivers import receiver
+from ..core.geometry import cart_to_sph
 from ..errors import BankError
-from .base import Bank, Trajectory, check_format, check_rate
+from ..receivers import receiver
 from ._h5 import H5Pool, read_rows
+from .base import Bank, Trajectory, check_format, check_rate
 from .paths import angular_steps
 
 TAU_ROOM_NUMBERS = {

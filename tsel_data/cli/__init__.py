@@ -18,7 +18,7 @@ import click
 from click.exceptions import NoArgsIsHelpError
 
 from ..errors import TselError, WriteError, tidy_message
-from ..executors import Stopped, stop_requested, stop_signals
+from ..runtime.signals import Stopped, stop_requested, stop_signals
 
 # command name -> (module in this package, the click command in it)
 COMMANDS = {
@@ -58,7 +58,7 @@ def cli():
 
 
 def main(argv=None) -> None:
-    # every command stops the same way on SIGINT, SIGTERM and SIGHUP (executors.py)
+    # every command stops the same way on SIGINT, SIGTERM and SIGHUP (runtime/signals.py)
     with stop_signals():
         try:
             rc = _run(argv)

@@ -5,8 +5,8 @@ import json
 
 import click
 
-from ..errors import BankError
 from ..choices import RirMethod, values
+from ..errors import BankError
 from ..receivers import ALIASES, NAMES, RECEIVERS
 from .options import force_option
 
@@ -57,7 +57,7 @@ def _write_with_bar(out, b, rooms, provenance):
     """write_bank, into ``out`` as claimed, with a bar counting RIRs (a TAU room is
     thousands, read trajectory by trajectory); on a terminal only."""
     from ..banks.native import write_bank  # as every command: its library module when it runs
-    from ..progress import bar
+    from ..core.progress import bar
 
     names = [b.resolve_room(r) for r in rooms] if rooms else list(b.rooms)
     total = sum(len(t) for r in names for t in b.trajectories(r))
@@ -148,7 +148,7 @@ def build(out, fmt, n_rooms, seed, fs, distances, heights, step_deg, rt60, side,
                             f"{', '.join(given)} or --demo")
         kw.update({k: v for k, v in DEMO.items() if k != "n_rooms"})
         n_rooms = DEMO["n_rooms"]
-    from ..progress import bar  # tqdm: only for the commands that show a bar
+    from ..core.progress import bar  # tqdm: only for the commands that show a bar
 
     with claim_output(out, force, OWNER), bar(n_rooms, "simulate", "room", None) as shown:  # a bar on a terminal only
         path = build_bank(out, format=fmt, n_rooms=n_rooms, seed=seed, overwrite=True,

@@ -31,7 +31,7 @@ def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, release
     Exits 0 when nothing stops a run (warnings, e.g. skipped bad clips, are printed),
     2 when something does; every problem is one line naming the file and row.
     """
-    from ..preflight import check_config
+    from ..job.preflight import check_config
     from ..store.check import check_dataset
 
     if dataset_dir and (config_opts.get("preset") or config_opts.get("config_path") or config_opts.get("manifest")):

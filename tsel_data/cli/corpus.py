@@ -17,7 +17,7 @@ def corpus():
 @force_option
 def synth(out_dir, seed, clips_per_type, force):
     """Synthesise the demo corpus: WAVs plus AudioCaps-format train/val/test CSVs."""
-    from ..demo import corpus_files, synth_corpus
+    from ..corpus.demo import corpus_files, synth_corpus
     from ..errors import TselError
     from ..store.outputs import claim_outputs
 
@@ -48,8 +48,8 @@ def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, work
 
     from tqdm import tqdm
 
-    from ..catalog import build_catalog, prepare_corpus, resolve_corpus_dir
-    from ..prepared import CACHE_ENV
+    from ..plan.catalog import build_catalog, prepare_corpus, resolve_corpus_dir
+    from ..corpus.prepared import CACHE_ENV
     from ..store.layout import Layout
     from ..store.outputs import refuse_inside
 
@@ -79,7 +79,7 @@ def embed_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, ou
     """
     import tempfile
 
-    from ..embeddings import corpus_captions, default_model_dir, embed, write_embeddings
+    from ..plan.embeddings import corpus_captions, default_model_dir, embed, write_embeddings
     from ..store.outputs import claim_output
 
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validate=False)

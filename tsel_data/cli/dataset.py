@@ -29,7 +29,7 @@ from .options import (allow_reuse_option, config_options, executor_options, load
 def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, resume, grow, force,
                  quiet, release, missing, manifest, allow_reuse, executor, scheduler):
     """Plan, render and finalize a dataset in one go."""
-    from ..pipeline import generate
+    from ..job.pipeline import generate
 
     if release:
         return _rebuild(release, out_dir, corpus_dir, bank, missing, workers, quiet, force, executor, scheduler,
@@ -49,7 +49,7 @@ def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides,
 
 def _rebuild(release, out_dir, corpus_dir, bank, missing, workers, quiet, force, executor, scheduler, planned) -> None:
     """``tsel generate --from REL``: the release's plan, rendered here, held against it."""
-    from ..rebuild import rebuild
+    from ..job.rebuild import rebuild
 
     if planned:
         raise TselError("--from takes its config and plan from the release: drop --preset, --config, --split, "
@@ -82,7 +82,7 @@ def _report(line: str) -> None:
 def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, grow, force, manifest,
              allow_reuse):
     """Check the corpus and write scene recipes only (plan/{split}.jsonl)."""
-    from ..pipeline import estimate_bytes, plan_dataset
+    from ..job.pipeline import estimate_bytes, plan_dataset
     from ..store.plans import shard_tasks
 
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides, manifest=manifest)
@@ -116,7 +116,7 @@ def _parse_range(text: str | None):
 @roots_options
 def render_cmd(out_dir, shards, workers, quiet, executor, scheduler, corpus_dir, bank):
     """Render planned shards (skips complete ones), for job arrays."""
-    from ..shards import render_shards  # not the pipeline: a render job does not import the sampler
+    from ..job.shards import render_shards  # not the pipeline: a render job does not import the sampler
 
     done = render_shards(out_dir, _parse_range(shards), workers=worker_count(workers), progress=not quiet,
                          executor=executor, scheduler=scheduler, corpus_dir=corpus_dir, bank=bank)
@@ -128,7 +128,7 @@ def render_cmd(out_dir, shards, workers, quiet, executor, scheduler, corpus_dir,
 @roots_options
 def finalize_cmd(out_dir, corpus_dir, bank):
     """Check every shard against the plan and write dataset.json."""
-    from ..shards import finalize
+    from ..job.shards import finalize
 
     doc = finalize(out_dir, corpus_dir, bank)
     click.echo("dataset.json written: " + ", ".join(f"{k} {v['scenes']}" for k, v in doc["splits"].items()))

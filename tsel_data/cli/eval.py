@@ -17,14 +17,14 @@ def eval_cmd(dataset_dir, pred_file, split, as_json, dcase):
     """Mean absolute azimuth error (deg, wrap-around) of the target, and accuracy within 5/10/20 deg; or, with
     --dcase, the DCASE SELD metrics (F, error rate, localisation error and recall, distance errors)."""
     if dcase:
-        from ..evaluate_dcase import evaluate_dcase
+        from ..tools.evaluate_dcase import evaluate_dcase
         from ..export.dcase import CLASSES
 
         scores = evaluate_dcase(dataset_dir, split, pred_file)
         click.echo(json.dumps(scores.to_dict(), indent=1) if as_json else
                    f"split {split}: " + scores.format_text(CLASSES))
         return
-    from ..evaluate import evaluate
+    from ..tools.evaluate import evaluate
 
     result = evaluate(dataset_dir, split, pred_file)
     click.echo(json.dumps(result.to_dict(), indent=1) if as_json else result.format_text())

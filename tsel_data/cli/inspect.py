@@ -35,7 +35,7 @@ def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems, sheet, n_scenes, 
         raise click.UsageError("missing SCENE (a scene id such as test-000000, or SPLIT/INDEX such as test/0), or "
                                "--sheet FILE for many scenes")
     from ..errors import TselError
-    from ..inspect import find_scene, inspect_outputs, inspect_scene, stereo_path  # h5py, matplotlib: only here
+    from ..tools.inspect import find_scene, inspect_outputs, inspect_scene, stereo_path  # h5py, matplotlib: only here
     from ..store.outputs import claim_outputs
 
     note_unfinished(dataset_dir)
@@ -43,7 +43,7 @@ def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems, sheet, n_scenes, 
     outputs = inspect_outputs(png, wav)
     stems = wav and not no_stems
     if stems:
-        from ..stems import stem_paths, write_stems  # rendering: scipy and the simulators load only here
+        from ..job.stems import stem_paths, write_stems  # rendering: scipy and the simulators load only here
 
         outputs += stem_paths(wav, len(found.record.sources), bool(found.record.noise))
     with claim_outputs(outputs, force, "tsel inspect"):
@@ -66,7 +66,7 @@ def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems, sheet, n_scenes, 
 
 
 def _sheet(dataset_dir, path, n_scenes, split, receiver, force):
-    from ..sheet import chosen_scenes, files_dir, is_picture_sheet, scene_ids, sheet_outputs, write_sheet
+    from ..tools.sheet import chosen_scenes, files_dir, is_picture_sheet, scene_ids, sheet_outputs, write_sheet
     from ..store.outputs import claim_outputs
 
     note_unfinished(dataset_dir)

@@ -14,7 +14,7 @@ from .options import force_option, note_unfinished
 @force_option
 def stats_cmd(dataset_dir, splits, png, as_json, force):
     """Scenes, clip reuse, target azimuths, separation, distances, rooms, RT60, levels, queries."""
-    from ..stats import dataset_stats, format_text, plot_stats
+    from ..tools.stats import dataset_stats, format_text, plot_stats
     from ..store.outputs import claim_outputs
 
     note_unfinished(dataset_dir)

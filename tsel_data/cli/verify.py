@@ -20,7 +20,7 @@ from .options import note_unfinished
 def verify_cmd(ctx, dataset_dir, splits, tolerance, max_scenes, fail_under, as_json, quiet, receiver):
     """Agreement of labels with a classical localizer (SRP-PHAT for arrays, the intensity vector for FOA, level
     differences for the DCASE stereo pair), per split."""
-    from ..verify import verify_dataset
+    from ..tools.verify import verify_dataset
 
     note_unfinished(dataset_dir)
     report = verify_dataset(dataset_dir, splits or None, tolerance=tolerance, max_scenes=max_scenes,

@@ -11,7 +11,7 @@ import re
 import sys
 from dataclasses import fields
 
-from ..doctables import rewrite
+from ..core.doctables import rewrite
 from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
 
 _BLOCK = re.compile(r"(<!-- keys:(?P<name>[\w.]+) -->\n)(?P<body>.*?)(<!-- /keys -->)", re.S)

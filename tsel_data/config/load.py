@@ -13,8 +13,8 @@ from dataclasses import fields
 from importlib import resources
 from typing import Any
 
-from ..distributions import Dist
 from ..errors import ConfigError
+from ..scene.distributions import Dist
 from .rules import Where, at, check_raw_config, validate_config
 from .schema import SECTIONS, TOP_FIELDS, TOP_KEYS, Config, SplitConfig
 
@@ -22,14 +22,14 @@ BUILTIN_PREFIX = "builtin:"  # corpus.dir / room.bank values the run builds itse
 
 
 def preset_names() -> list[str]:
-    return sorted(p.name[:-5] for p in resources.files("tsel_data.presets").iterdir() if p.name.endswith(".toml"))
+    return sorted(p.name[:-5] for p in resources.files("tsel_data.config.presets").iterdir() if p.name.endswith(".toml"))
 
 
 def preset_text(name: str) -> str:
     """The TOML text of a built-in preset (ConfigError naming the presets if unknown)."""
     if name not in preset_names():
         raise ConfigError(f"unknown preset {name!r}; available: {', '.join(preset_names())}")
-    return (resources.files("tsel_data.presets") / f"{name}.toml").read_text(encoding="utf-8")
+    return (resources.files("tsel_data.config.presets") / f"{name}.toml").read_text(encoding="utf-8")
 
 
 def load_config(preset: str | None = None, path: str | None = None, overrides=(), *,

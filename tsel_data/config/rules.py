@@ -20,9 +20,9 @@ from dataclasses import fields
 
 from ..acoustics.metrics import sabine_min_rt60
 from ..choices import LevelModel, Pairing, QueryType, Relation, SimilarityMeasure, values
-from ..distributions import Dist
 from ..errors import ConfigError, GeometryError
 from ..receivers import canonical
+from ..scene.distributions import Dist
 from .receiver import array_poses, receiver_problems
 from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
 

@@ -4,7 +4,7 @@ Each field carries its unit, allowed values, range and help in ``field(metadata=
 (:func:`option`, :func:`dist`). Loading (load.py), the per-field checks (rules.py),
 ``tsel presets NAME`` (toml.py) and the key tables of docs/config.md (doc.py) are
 derived from these declarations; checks across fields are written out in rules.py.
-A sampled parameter is a :class:`~tsel_data.distributions.Dist`.
+A sampled parameter is a :class:`~tsel_data.scene.distributions.Dist`.
 """
 from __future__ import annotations
 
@@ -14,9 +14,9 @@ from ..choices import (Additive, AudioCoding, BadClipPolicy, Baffle, CheckLevel,
                        HrtfInterpolation,
                        LevelModel, Motion, NoiseSpectrum, Pairing, PathKind, QueryType, Relation, RirMethod, Scenario,
                        SegmentRule, SensorLevel, SimilarityMeasure, values)
-from ..distributions import Dist
-from ..jsonable import jsonable
+from ..core.jsonable import jsonable
 from ..receivers import NAMES as RECEIVER_NAMES
+from ..scene.distributions import Dist
 
 
 def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, le=None, lt=None, why: str = "",

@@ -10,13 +10,15 @@ this one)::
     card        the dataset card (README.md with the Hub's YAML header)
     base        Writer, WriterOption, ExportJob, run_export: walking splits, claiming
                 --out, per-split replace, the export's manifest
-    coding      a scene's audio as .npy, WAV and FLAC, bit-exact in the dataset's coding
     dcase       the DCASE 2024 Task 3 layout
-    webdataset  WebDataset tar shards (writing and reading them)
+    webdataset  WebDataset tar shards
     hf          the Hugging Face layout: Parquet audio shards and metadata tables
     lhotse      lhotse manifests (recordings, supervisions, cuts) and the audio files
     recipes     recipe releases: the plan and per-scene checksums, no audio
     cardonly    the card alone, for any dataset
+
+What a format's files hold, and their readers, live in ``tsel_data.formats`` (the tools
+read them back without importing the writers).
 
 A new format is one module with a :class:`~tsel_data.export.base.Writer` subclass and one
 line in :data:`WRITERS`; ``tsel export NAME`` and its options follow from the writer.
@@ -26,7 +28,7 @@ from __future__ import annotations
 from ..errors import TselError
 from .base import ExportResult, Writer, WriterOption, run_export
 from .cardonly import CardWriter
-from .dcase import DcaseWriter, dcase_rows, export_dcase, read_dcase_csv
+from .dcase import DcaseWriter, export_dcase
 from .hf import HuggingFaceWriter
 from .lhotse import LhotseWriter
 from .recipes import RecipesWriter
@@ -51,5 +53,5 @@ def export(name: str, root: str, out: str, splits=None, force: bool = False, pro
     return run_export(resolve_writer(name)(**options), root, out, splits, force, progress)
 
 
-__all__ = ["WRITERS", "ExportResult", "Writer", "WriterOption", "dcase_rows", "export", "export_dcase",
-           "read_dcase_csv", "resolve_writer", "run_export"]
+__all__ = ["WRITERS", "ExportResult", "Writer", "WriterOption", "export", "export_dcase", "resolve_writer",
+           "run_export"]

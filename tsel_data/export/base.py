@@ -31,15 +31,15 @@ from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from typing import Callable, ClassVar
 
-from ..atomic import atomic_output, write_json, write_text
+from ..core.atomic import atomic_output, write_json, write_text
+from ..core.progress import bar
+from ..core.version import __version__
 from ..errors import DatasetError, TselError, broken_link
-from ..progress import bar
 from ..store.dataset import DatasetDoc, load_dataset_doc
 from ..store.layout import EXPORT_MANIFEST_FILE, Layout
 from ..store.outputs import foreign_file, refuse_inside, stamp
-from ..stats import SplitTally, dataset_stats
 from ..store.reader import SceneDataset, open_dataset
-from ..version import __version__
+from ..tools.stats import SplitTally, dataset_stats
 from .card import FIGURE_FILE, CARD_FILE, card_text, draw_figure
 
 MANIFEST_FILE = EXPORT_MANIFEST_FILE

@@ -13,10 +13,10 @@ from __future__ import annotations
 import hashlib
 import json
 
+from ..core.version import __version__
 from ..errors import TselError
 from ..receivers import receiver
-from ..stats import dataset_stats, format_text, plot_stats
-from ..version import __version__
+from ..tools.stats import dataset_stats, format_text, plot_stats
 
 CARD_FILE = "README.md"
 FIGURE_FILE = "stats.png"

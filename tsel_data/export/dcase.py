@@ -27,50 +27,18 @@ import os
 
 import numpy as np
 
-from ..audio import save_wav
 from ..choices import WavSubtype, values
+from ..corpus.audio import save_wav
 from ..errors import DatasetError
 from ..receivers import receiver
+from ..formats.dcase import FRAME_HOP, dcase_rows
 from .base import SplitResult, Writer, WriterOption, run_export
 
 CLASSES = {0: "target", 1: "interferer"}
 QUERY_COLUMNS = ("fold", "split", "file", "scene_id", "query")
 SUBTYPES = values(WavSubtype)
-FRAME_HOP = 0.1  # the DCASE label resolution, s
 QUERIES_FILE = "queries.csv"
 CLASSES_FILE = "classes.json"
-
-
-def dcase_rows(scene, frame_hop: float = FRAME_HOP) -> list[tuple[int, int, int, int, int, int]]:
-    """DCASE label rows of one scene, sorted by frame then class then source.
-
-    Our label frames must already be ``frame_hop`` long (the DCASE 100 ms resolution).
-    """
-    if abs(scene.label_hop - frame_hop) > 1e-9:
-        raise DatasetError(f"{scene.scene_id}: label_hop is {scene.label_hop} s; DCASE export needs {frame_hop} s "
-                           f"frames (set label_hop = {frame_hop} and regenerate)")
-    rows = []
-    per_class = {0: 0, 1: 0}
-    for s in range(scene.n_sources):
-        az = scene.azimuth[s]
-        if not np.isfinite(az).any():
-            continue  # additive / positionless source: nothing to localise
-        cls = 0 if s == 0 else 1
-        src_idx = per_class[cls]
-        per_class[cls] += 1
-        frames = np.flatnonzero(scene.active[s] & np.isfinite(az))
-        az_i = _round_half_up(az[frames])
-        az_i = np.where(az_i >= 180, az_i - 360, az_i)  # 179.6 rounds to 180 == -180
-        el_i = _round_half_up(scene.elevation[s][frames])
-        d_cm = _round_half_up(100.0 * scene.distance[s][frames])
-        rows.extend(zip(frames.tolist(), [cls] * len(frames), [src_idx] * len(frames), az_i.tolist(),
-                        el_i.tolist(), d_cm.tolist()))
-    rows.sort()
-    return rows
-
-
-def _round_half_up(x) -> np.ndarray:
-    return np.floor(np.asarray(x, dtype=np.float64) + 0.5).astype(np.int64)
 
 
 class DcaseWriter(Writer):
@@ -181,9 +149,3 @@ def export_dcase(root: str, out: str, splits=None, subtype: str = "PCM_16", prog
                                     "metadata_dir": os.path.join(out, v["metadata_dir"])}
         summary["rows"] += v["rows"]
     return summary
-
-
-def read_dcase_csv(path: str) -> np.ndarray:
-    """Read a DCASE label CSV -> int64 [N, 6] (frame, class, source, az, el, dist)."""
-    rows = np.loadtxt(path, delimiter=",", dtype=np.int64, ndmin=2)
-    return rows.reshape(-1, 6) if rows.size else np.zeros((0, 6), np.int64)

@@ -29,7 +29,7 @@ import soundfile as sf
 
 from ..errors import TselError
 from .base import Shards, SplitResult, Writer, WriterOption, parse_size
-from .coding import file_audio
+from ..formats.coding import file_audio
 
 DEFAULT_SHARD_SIZE = "500MB"
 ROW_GROUP_BYTES = 64_000_000  # the Hub's viewer reads a row group at a time

@@ -28,7 +28,7 @@ import io
 import json
 
 from .base import SplitResult, Writer
-from .coding import file_audio
+from ..formats.coding import file_audio
 
 
 def manifest_names(split: str) -> dict:

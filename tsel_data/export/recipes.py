@@ -10,13 +10,13 @@ import json
 import os
 from collections import defaultdict
 
+from ..core.digest import sha256_file
+from ..core.version import __version__
 from ..errors import DatasetError
-from ..digest import sha256_file
 from ..store.layout import CONFIG_FILE, DATASET_FILE, Layout
 from ..store.plans import local_roots, read_plan_doc, read_plan_lines
 from ..store.release import (CLIPS_FILE, DIGESTS, RELEASE_FILE, RELEASE_KIND, RELEASE_VERSION, checksums_file,
                              plan_file, scene_digest)
-from ..version import __version__
 from .base import SplitResult, Writer, WriterOption
 from .card import config_hash
 

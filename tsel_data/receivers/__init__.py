@@ -11,7 +11,10 @@ Import order inside the package (each module imports only those above it)::
     builtin     the built-in receivers, one entry each
     registry    lookup by name or alias
     pose        ArrayPose: a receiver in a room
-    custom      arrays from the config: capsule tables checked and resolved
+    doc         the receivers table of docs/format.md
+    stereo      the headphone decode of every receiver (``tsel inspect --wav``)
+
+Arrays from the config (capsule tables checked and resolved) are ``config/receiver.py``.
 """
 from .builtin import TETRA_ANGLES, TETRA_RADIUS, mic4_positions, tetra_positions
 from .pose import ArrayPose, array_radius, mic_positions

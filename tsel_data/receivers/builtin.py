@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..choices import ReceiverModel as M
-from ..geometry import sph_to_cart
+from ..core.geometry import sph_to_cart
 from .spec import PATTERN_ALPHA, ReceiverSpec
 
 # DCASE MIC format (Eigenmike capsules 6, 10, 26, 22): (azimuth, elevation) in degrees.
@@ -67,7 +67,7 @@ FOA = ReceiverSpec(
     name="foa", model=M.AMBISONIC, layout=_fixed(np.zeros((4, 3))),
     summary="first-order ambisonics, ACN/SN3D (W, Y, Z, X), as the DCASE FOA format",
     channel_names=("W", "Y", "Z", "X"),
-    # two virtual cardioids at ±90°: ½(W ± Y) (stereo.py)
+    # two virtual cardioids at ±90°: ½(W ± Y) (receivers/stereo.py)
     stereo=((0.5, 0.5, 0.0, 0.0), (0.5, -0.5, 0.0, 0.0)),
     level_channels=(0,), additive=(1.0, 0.0, 0.0, 0.0), localizer="intensity", export_folder="foa",
     convention="ACN (W, Y, Z, X), SN3D",

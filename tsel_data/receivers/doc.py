@@ -9,7 +9,7 @@ from __future__ import annotations
 import re
 import sys
 
-from ..doctables import rewrite
+from ..core.doctables import rewrite
 from .registry import RECEIVERS
 
 _BLOCK = re.compile(r"(<!-- receivers -->\n)(.*?)(<!-- /receivers -->)", re.S)

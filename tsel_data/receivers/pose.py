@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..choices import Baffle, ReceiverModel
-from ..geometry import Vec3
+from ..core.geometry import Vec3
 from .registry import receiver
 
 

@@ -5,7 +5,7 @@ hold the datasets and shapes of docs/format.md and agree scene by scene with its
 (ids, queries, per-frame labels, activity, mic positions); counts must match the plan
 and the config; ``audio=True`` also checks every sample is finite. An unfinished run
 (plan but no ``dataset.json``) is reported with its progress. Problems are collected
-in a :class:`~tsel_data.report.CheckReport`, never raised.
+in a :class:`~tsel_data.core.report.CheckReport`, never raised.
 """
 from __future__ import annotations
 
@@ -17,15 +17,15 @@ from concurrent.futures import ProcessPoolExecutor
 import h5py
 import numpy as np
 
+from ..core.digest import sha256_file
+from ..core.h5str import as_str, as_strs
+from ..core.report import CheckReport
 from ..errors import DatasetError, TselError
-from ..h5str import as_str, as_strs
-from ..report import CheckReport
 from .codings import coding_of, decode
 from .dataset import load_dataset_doc
 from .layout import SEAL_SUFFIX, Layout
 from .plans import config_digest, has_plan, plan_ids, read_plan_doc, seal_problem, shard_sealed, shard_tasks
 from .records import LABEL_ATOL, LABEL_KEYS, SourceRecord
-from ..digest import sha256_file
 
 
 def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckReport:

@@ -10,7 +10,7 @@ import json
 import os
 from dataclasses import dataclass, field, replace
 
-from ..version import __version__
+from ..core.version import __version__
 from ..errors import DatasetError
 from ..receivers import RECEIVERS, receiver
 from .layout import DATASET_FILE

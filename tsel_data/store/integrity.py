@@ -19,7 +19,7 @@ import json
 import os
 from dataclasses import dataclass
 
-from ..digest import sha256_file
+from ..core.digest import sha256_file
 from .layout import Layout
 
 SEAL_VERSION = 1

@@ -21,8 +21,8 @@ import os
 import stat
 from contextlib import contextmanager
 
-from ..atomic import write_json
 from ..banks.tau import is_tau_folder
+from ..core.atomic import write_json
 from ..errors import DatasetError, TselError, broken_link
 from .layout import EXPORT_MANIFEST_FILE, Layout
 

@@ -12,12 +12,12 @@ import json
 import os
 from dataclasses import dataclass
 
+from ..core.digest import sha256_file
+from ..core.version import __version__
 from ..errors import DatasetError
 from ..receivers import canonical, receiver
-from ..recipe import SceneRecipe, read_plan
-from ..version import __version__
+from ..scene.recipe import SceneRecipe, read_plan
 from .dataset import DatasetDoc, ShardEntry
-from ..digest import sha256_file
 from .layout import CONFIG_FILE, Layout, shard_names
 
 

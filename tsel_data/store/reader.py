@@ -19,9 +19,9 @@ from typing import Iterator
 import h5py
 import numpy as np
 
-from ..errors import DatasetError
-from ..h5str import as_str, as_strs
 from ..choices import AudioCoding
+from ..core.h5str import as_str, as_strs
+from ..errors import DatasetError
 from .codings import coding_of, decode
 from .dataset import DatasetDoc, load_dataset_doc
 from .layout import RECEIVERS_GROUP, Layout

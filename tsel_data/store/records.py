@@ -15,8 +15,8 @@ from functools import cached_property
 
 import numpy as np
 
-from ..captions import answerable_queries
-from ..recipe import BankWalk
+from ..corpus.captions import answerable_queries
+from ..scene.recipe import BankWalk
 
 # Labels in the JSON are rounded: angles to 3 decimals, distances to 4, so the HDF5
 # (float32) and the JSON agree within this.
@@ -288,7 +288,7 @@ class SceneRecord(_JsonMapping):
         (other wordings of the same relation, or the captions that pass the dataset's
         own similarity guard), or for records without them the target's captions that
         pass the word-set and the lexicon guard ``caption_similarity`` against every
-        other source (:func:`~tsel_data.captions.answerable_queries`)."""
+        other source (:func:`~tsel_data.corpus.captions.answerable_queries`)."""
         if self.extended:
             return list(self.query_alternatives or ()) or [self.query]
         return answerable_queries(self.sources[0].captions, [s.captions for s in self.sources[1:]],

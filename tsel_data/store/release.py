@@ -24,8 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.report import CheckReport
 from ..errors import DatasetError
-from ..report import CheckReport
 from .layout import CONFIG_FILE, DATASET_FILE, PLAN_DIR, Layout
 from .plans import read_plan_doc
 from .reader import list_splits, open_dataset

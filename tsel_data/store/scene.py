@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import azimuth_difference, frame_centres
+from ..core.geometry import azimuth_difference, frame_centres
 from .records import SceneRecord
 
 @dataclass

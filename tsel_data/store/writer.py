@@ -17,15 +17,15 @@ from dataclasses import replace
 import h5py
 import numpy as np
 
-from ..atomic import _fsync_dir, _fsync_file, atomic_write, remove_stale_tmp, write_error
-from ..jsonable import jsonable
 from ..choices import AudioCoding
+from ..core.atomic import _fsync_dir, _fsync_file, atomic_write, remove_stale_tmp, write_error
+from ..core.digest import sha256_file
+from ..core.jsonable import jsonable
+from ..receivers import receiver
 from .codings import create_audio, encode
 from .dataset import FORMAT_VERSION, ShardEntry
-from ..digest import sha256_file
 from .integrity import FileSeal, Seal
 from .layout import Layout, shard_names
-from ..receivers import receiver
 from .layout import NOISE_GROUP, RECEIVERS_GROUP
 from .records import LABEL_KEYS
 from .scene import Scene

@@ -1,0 +1,244 @@
+"""Rebuild a dataset from a recipe release (``tsel generate --from REL --corpus-dir MY_COPY
+--out DIR``) and say, scene by scene, how close it came.
+
+The release's recipes are rendered from the user's copy of the corpus; each scene then
+gets one status, held against the release's checksums (store/release.py):
+
+- ``identical``: audio, labels and record are the release's, bit for bit;
+- ``differs``: they are not; ``why`` names the scene's clips whose bytes differ from the
+  release's (or says none does: the renderer or its libraries differ);
+- ``not-buildable``: a clip is missing (or no longer readable), and the policy is
+  ``skip``: the scene is left out of the dataset;
+- ``substituted``: a clip was missing and the policy is ``substitute``: a clip of the
+  same split drawn per (scene, source) from those present and unchanged plays in its
+  place (a substituted target's query becomes the substitute's first caption); the
+  substitution is in ``why``.
+
+The dataset is an ordinary one (plan, shards, ``dataset.json``: every tool reads it);
+``rebuild.json`` holds the report. Running the same command again resumes it.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import asdict, dataclass, field
+
+from ..banks.scenes import resolve_bank
+from ..choices import MissingClipPolicy, values
+from ..config import parse_config
+from ..core.atomic import write_json, write_lines
+from ..core.digest import sha256_file
+from ..core.version import __version__
+from ..corpus.audio import check_clip
+from ..errors import DatasetError, TselError
+from ..plan.catalog import BUILTIN_DEMO, resolve_corpus_dir
+from ..plan.sampler import bank_request
+from ..scene.recipe import SceneRecipe
+from ..store.layout import Layout
+from ..store.lock import DatasetLock
+from ..store.plans import has_plan, local_roots, plan_seal, read_plan_doc
+from ..store.reader import open_dataset
+from ..store.release import REBUILD_FILE, Release, differing_parts, load_release, scene_digest
+from .pipeline import check_ownership, finalize, render_shards
+
+POLICIES = values(MissingClipPolicy)
+STATUSES = ("identical", "differs", "substituted", "not-buildable")
+
+
+@dataclass
+class SceneOutcome:
+    """How one scene of the release came out (see the module docstring)."""
+
+    scene_id: str
+    split: str
+    status: str
+    why: str = ""
+    parts: list = field(default_factory=list)
+    clips: list = field(default_factory=list)
+
+
+@dataclass
+class ClipState:
+    """A clip of the release in the user's copy: ``missing`` (with the reason) or ``changed``."""
+
+    missing: dict = field(default_factory=dict)
+    changed: set = field(default_factory=set)
+
+
+def rebuild(release_dir: str, out_dir: str, corpus_dir: str | None = None, bank: str | None = None,
+            missing: str = "skip", workers: int = 1, progress: bool = True, force: bool = False,
+            executor: str = "local", scheduler: str | None = None) -> dict:
+    """Render the release ``release_dir`` into ``out_dir`` from the corpus at
+    ``corpus_dir`` (and the RIR bank at ``bank``); returns the report written to
+    ``out_dir/rebuild.json``: ``splits`` ({split: {status: count}}) and ``scenes``
+    (every :class:`SceneOutcome`, in plan order).
+
+    Raises a TselError (one line) for a folder that is not a release, a corpus or bank
+    not given or not there, an unknown ``missing`` policy, an ``out_dir`` that holds
+    anything but this rebuild (without ``force``).
+    """
+    if missing not in POLICIES:
+        raise TselError(f"--missing {missing!r}: choose one of {', '.join(POLICIES)}")
+    rel = load_release(release_dir)
+    layout = Layout(out_dir)
+    check_ownership(layout, force)
+    os.makedirs(layout.plan_dir, exist_ok=True)
+    with DatasetLock(layout, exclusive=True, what="rebuild it"):
+        config = _config_here(rel, layout, corpus_dir, bank)
+        cfg = parse_config(local_roots(config, layout.root), where=rel.path("plan/config.json"), stored=True)
+        corpus = resolve_corpus_dir(cfg, layout.demo_corpus)
+        if cfg.room.bank:
+            resolve_bank(bank_request(cfg), layout.demo_bank)  # builds the built-in one, checks any other
+        clips = _clip_states(rel, corpus, cfg, progress)
+        plans, outcomes = _plan(rel, clips, missing)
+        _write_plan(rel, layout, config, plans)
+        render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
+        finalize(out_dir)
+        _compare(rel, out_dir, outcomes, clips)
+    report = {"tool": "tsel-data", "version": __version__, "release": os.path.relpath(
+        os.path.realpath(release_dir), os.path.realpath(out_dir)).replace(os.sep, "/"),
+              "release_version": rel.doc.get("version"), "missing": missing,
+              "splits": {s: {k: sum(o.split == s and o.status == k for o in outcomes) for k in STATUSES}
+                         for s in rel.splits},
+              "scenes": [asdict(o) for o in outcomes]}
+    write_json(os.path.join(out_dir, REBUILD_FILE), report)
+    return report
+
+
+def _config_here(rel: Release, layout: Layout, corpus_dir: str | None, bank: str | None) -> dict:
+    """The release's config with its roots where they are here (as plan/config.json
+    stores them: relative to the new dataset), or a one-line error naming the flag."""
+    config = json.loads(json.dumps(rel.plan_doc["config"]))
+    corpus = (config.get("corpus") or {}).get("dir", "")
+    if corpus_dir:
+        config["corpus"]["dir"] = os.path.abspath(os.path.expanduser(corpus_dir))
+    elif corpus != BUILTIN_DEMO:
+        raise TselError(f"the release's clips come from a corpus of your own ({corpus or 'unnamed'}, as the "
+                        f"dataset's maker had it): give --corpus-dir with your copy")
+    room = config.get("room") or {}
+    if bank:
+        room["bank"] = os.path.abspath(os.path.expanduser(bank))
+    elif room.get("bank") and not str(room["bank"]).startswith("builtin:"):
+        raise TselError(f"the release renders through the RIR bank {room['bank']}: give --bank with your copy")
+    config["room"] = room
+    for sec, key in (("corpus", "dir"), ("room", "bank")):  # relative to the new dataset, as plans store roots
+        value = config[sec].get(key)
+        if value and os.path.isabs(value):
+            config[sec][key] = os.path.relpath(os.path.realpath(value), os.path.realpath(layout.root)) \
+                .replace(os.sep, "/")
+    return config
+
+
+def _clip_states(rel: Release, corpus: str, cfg, progress) -> ClipState:
+    """Which of the release's clips are missing from (or unreadable in) the copy, and
+    which differ from the release's bytes."""
+    state = ClipState()
+    c = cfg.corpus
+    for name, entry in rel.clips().items():
+        path = os.path.join(corpus, name)
+        if not os.path.isfile(path):
+            state.missing[name] = f"clip {entry['clip_id']} ({name}) is missing"
+            continue
+        if os.path.getsize(path) == entry.get("bytes") and sha256_file(path) == entry.get("sha256"):
+            continue
+        state.changed.add(name)
+        check = check_clip(entry["clip_id"], path, "full", c.min_duration, c.max_channels)
+        if check.problem:
+            state.missing[name] = f"clip {entry['clip_id']} changed and is a bad clip now: {check.problem}"
+    return state
+
+
+def _plan(rel: Release, clips: ClipState, policy: str) -> tuple[dict, list]:
+    """{split: recipe lines to render} and the outcomes known before rendering."""
+    entries = rel.clips()
+    plans, outcomes = {}, []
+    for split in rel.splits:
+        pool = sorted(n for n, e in entries.items() if split in e.get("splits", ()) and n not in clips.missing
+                      and n not in clips.changed)
+        lines = []
+        for line in rel.recipe_lines(split):
+            d = json.loads(line)
+            names = [s["audio"] for s in d["sources"]]
+            gone = [n for n in names if n in clips.missing]
+            if not gone:
+                lines.append(line)
+                outcomes.append(SceneOutcome(d["scene_id"], split, "", clips=names))
+                continue
+            why = "; ".join(clips.missing[n] for n in gone)
+            if policy == MissingClipPolicy.SKIP:
+                outcomes.append(SceneOutcome(d["scene_id"], split, "not-buildable", why, clips=names))
+                continue
+            done = _substitute(d, gone, pool, entries)
+            if done is None:
+                outcomes.append(SceneOutcome(d["scene_id"], split, "not-buildable",
+                                             why + "; no clip of the split is left to stand in", clips=names))
+                continue
+            lines.append(SceneRecipe.from_dict(d).to_json())
+            outcomes.append(SceneOutcome(d["scene_id"], split, "substituted", why + "; " + done,
+                                         clips=[s["audio"] for s in d["sources"]]))
+        plans[split] = lines
+    return plans, outcomes
+
+
+def _substitute(d: dict, gone: list, pool: list, entries: dict) -> str | None:
+    """Put a clip of ``pool`` in place of each missing one of recipe ``d`` (in place);
+    the choice hashes (scene id, source, clip), so it is the same on every machine.
+    Returns what was done, or None when the pool has no clip the scene does not use."""
+    done = []
+    for k, s in enumerate(d["sources"]):
+        if s["audio"] not in gone:
+            continue
+        used = {x["audio"] for x in d["sources"]}
+        free = [n for n in pool if n not in used]
+        if not free:
+            return None
+        key = hashlib.sha256(f"{d['scene_id']}/{k}/{s['audio']}".encode()).digest()
+        name = free[int.from_bytes(key[:8], "big") % len(free)]
+        new = entries[name]
+        done.append(f"source {k} plays {new['clip_id']} instead of {s['clip_id']}")
+        s.update(audio=name, clip_id=new["clip_id"], captions=list(new["captions"]), offset=0.0)
+        if k == 0:
+            d["query"] = new["captions"][0]
+            if d.get("query_plan"):  # the relations stand; the captions are the substitute's
+                d["query_plan"].update(alternatives=list(new["captions"]), matches=[])
+    return ", ".join(done)
+
+
+def _write_plan(rel: Release, layout: Layout, config: dict, plans: dict) -> None:
+    """The plan of the scenes to render, as the plan stage writes it (config last). A
+    folder that already holds this plan (an interrupted rebuild) is resumed as it is."""
+    counts = {s: len(lines) for s, lines in plans.items()}
+    config = {**config, "splits": {s: {**v, "count": counts.get(s, 0)} for s, v in config["splits"].items()}}
+    # sealed anew: the config (counts) and the plan files (scenes left out or substituted)
+    # are this rebuild's, not the release's
+    doc = {**rel.plan_doc, "config": config,
+           "seal": plan_seal(config, {s: plans.get(s, []) for s in config["splits"]})}
+    if has_plan(layout):
+        if read_plan_doc(layout) == json.loads(json.dumps(doc)):
+            return
+        raise DatasetError(f"{layout.root} holds another dataset plan; rebuild into a new --out")
+    for split in config["splits"]:  # a split the release does not hold is planned empty
+        write_lines(layout.plan_file(split), plans.get(split, []))
+    write_json(layout.config_file, doc)
+
+
+def _compare(rel: Release, out_dir: str, outcomes: list, clips: ClipState) -> None:
+    """Each rendered scene's checksums against the release's: its status and why."""
+    by_id = {o.scene_id: o for o in outcomes}
+    for split in rel.splits:
+        want = rel.checksums(split)
+        with open_dataset(out_dir, split) as ds:
+            for scene in ds:
+                o = by_id[scene.scene_id]
+                o.parts = differing_parts(want[scene.scene_id], scene_digest(scene))
+                if o.status == "substituted":
+                    continue
+                if not o.parts:
+                    o.status = "identical"
+                    continue
+                o.status = "differs"
+                changed = [n for n in o.clips if n in clips.changed]
+                o.why = ("; ".join(f"clip {n} differs from the release's (sha256)" for n in changed) if changed else
+                         f"no clip differs: the renderer or its libraries do (release made by tsel-data "
+                         f"{rel.doc.get('version')}, this is {__version__})")

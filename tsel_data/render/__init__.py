@@ -1,0 +1,9 @@
+"""The renderer: a scene recipe becomes a scene (audio, labels, record), reading nothing
+but the recipe and the files it names.
+
+``mix`` renders the spatial images of the sources (simulated rooms, banks, moving
+sources), levels and the mix, decides the query and builds the record; ``noise`` renders
+the diffuse noise beds a recipe asks for (spectral noise, babble, recorded ambience).
+
+Import order: ``noise``, then ``mix``.
+"""

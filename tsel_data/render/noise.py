@@ -1,0 +1,105 @@
+"""What a scene hears besides its sources (``[noise]``, recipe ``noise``): each
+:class:`~tsel_data.scene.recipe.NoiseItem` as a receiver hears it, and its level.
+
+- ``ambience``: the recording's stretch named by the recipe (tsel_data/corpus/ambience.py), as
+  recorded: it must have the receiver's channels.
+- ``diffuse``: stationary Gaussian noise with the receiver's diffuse-field cross-spectra
+  (its capsule model's ``diffuse_csd``, acoustics/capsules.py) shaped by a spectrum:
+  white, pink (1/f), brown (1/f²) above 20 Hz, or a corpus clip's long-term spectrum.
+- ``babble``: corpus clips, each at an equal active level, each a plane wave from its own
+  direction (a far source of the free field: its capsule model with one image 10 m away).
+- ``sensor``: independent white noise on every channel.
+
+Levels (:func:`noise_gain`): an SNR is against the target's omni energy over the whole
+scene, as the DCASE generator defines it (ambience.snr_gain: the energy of the mean over
+the receiver's level channels), measured on the first receiver; sensor noise at a level
+in dBFS is that RMS per channel. Noise is never a source: no label, no position.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..acoustics.capsules import capsule_model
+from ..acoustics.late import csd_noise
+from ..core.geometry import array_to_room, sph_to_cart
+from ..corpus.ambience import omni_energy, read_segment, snr_gain
+from ..corpus.audio import active_rms, frame_activity, load_clip_cached
+from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
+from ..dsp.timevarying import render_static
+from ..errors import AudioError
+
+BABBLE_DISTANCE = 10.0  # m: a far source, a plane wave to a 10 cm array (its curvature is below 0.5 mm)
+SPECTRUM_FLOOR = 20.0  # Hz: pink and brown spectra are flat below it (no infinite DC)
+
+
+def noise_image(item, pose, fs: int, n: int, duration: float, hop: float, threshold_db: float) -> np.ndarray:
+    """NoiseItem ``item`` as ``pose`` hears it, unscaled: float32 [C, n]."""
+    c = pose.n_channels
+    if item.kind == "ambience":
+        x = read_segment(item.file, int(item.offset), n)
+        if x.shape[0] != c:
+            raise AudioError(f"ambience {item.file} has {x.shape[0]} channels but {pose.format} has {c}; use "
+                             f"recordings made with the receiver (TAU-SNoise_DB: foa or tetra)")
+        return x
+    rng = np.random.default_rng([item.seed, 0])
+    if item.kind == "sensor":
+        return rng.standard_normal((c, n)).astype(np.float32)
+    model = capsule_model(pose, fs)
+    if item.kind == "diffuse":
+        shape = _spectrum(item, fs, duration)
+        return csd_noise(rng, 1, n, fs, lambda f: model.diffuse_csd(f) * shape(f)[:, None, None])[0].astype(np.float32)
+    if item.kind == "babble":
+        out = np.zeros((c, n), dtype=np.float32)
+        for (path, offset), (az, el) in zip(item.clips, item.directions):
+            x = load_clip_cached(path, fs, duration, float(offset))
+            level = active_rms(x[None], frame_activity(x, fs, hop, int(round(duration / hop)), threshold_db), fs, hop)
+            if not level > 0:
+                continue  # a silent clip adds nothing
+            out += render_static(x / level, _plane_wave(model, pose, az, el, fs))[:, :n]
+        return out
+    raise ValueError(f"unknown noise kind {item.kind!r}")
+
+
+def noise_gain(item, target_image: np.ndarray, noise: np.ndarray, level_channels) -> float:
+    """The gain that puts ``noise`` (the first receiver's) at ``item``'s SNR against
+    ``target_image`` (the target's image in the mix, same receiver), or for sensor noise
+    at ``level_dbfs`` RMS per channel."""
+    if item.snr_db is None:
+        rms = float(np.sqrt(np.mean(np.asarray(noise, dtype=np.float64) ** 2)))
+        return 10 ** (item.level_dbfs / 20) / rms if rms > 0 else 0.0
+    if omni_energy(noise, level_channels) <= 0:
+        return 0.0
+    return snr_gain(target_image, noise, item.snr_db, level_channels)
+
+
+def _spectrum(item, fs: int, duration: float):
+    """freqs -> the diffuse noise's power spectrum (1 at its reference)."""
+    if item.spectrum == "clip":
+        path, offset = item.clips[0]
+        x = np.asarray(load_clip_cached(path, fs, duration, float(offset)), dtype=np.float64)
+        n_fft = 4096
+        frames = x[: len(x) // n_fft * n_fft].reshape(-1, n_fft) * np.hanning(n_fft)
+        psd = np.mean(np.abs(sfft.rfft(frames, axis=-1)) ** 2, axis=0) if len(frames) else np.ones(n_fft // 2 + 1)
+        psd = psd / max(float(psd.mean()), 1e-30)
+        grid = sfft.rfftfreq(n_fft, 1.0 / fs)
+        return lambda f: np.interp(f, grid, psd)
+    power = {"white": 0.0, "pink": 1.0, "brown": 2.0}[item.spectrum]
+    return lambda f: (np.maximum(np.asarray(f, dtype=np.float64), SPECTRUM_FLOOR) / 1000.0) ** -power
+
+
+def _plane_wave(model, pose, az: float, el: float, fs: int) -> np.ndarray:
+    """The receiver's response [C, L] to a far source at (az, el) of the array frame, unit
+    amplitude at the centre (free field: one image, no walls)."""
+    pos = array_to_room(sph_to_cart(az, el, BABBLE_DISTANCE), pose.centre, pose.yaw)[None, :]
+    n = int(np.ceil((BABBLE_DISTANCE + 0.5) / 343.0 * fs)) + 64
+    grid = model.new_grid(n)
+    model.add(grid, pos, np.array([4 * np.pi * BABBLE_DISTANCE]), None)
+    return model.render(grid).astype(np.float32)
+
+
+def noise_level_dbfs(noise: np.ndarray, level_channels) -> float:
+    """A scaled noise's level as the record states it: the RMS of its level channels, dBFS."""
+    x = np.asarray(noise, dtype=np.float64)[level_channels]
+    rms = float(np.sqrt(np.mean(x ** 2))) if x.size else 0.0
+    return 20 * np.log10(rms) if rms > 0 else float("-inf")
+
