@@ -35,15 +35,17 @@ demo: $(STAMP)
 	@echo "demo dataset in $(DEMO_OUT)/ (dataset.json); pictures and audio in $(DEMO_VIEWS)/ (stats.png, test-000000.png, test-000000.wav)"
 	@echo "moving-source demo dataset in $(DEMO_MOVING_OUT)/"
 
-# Two processes, one per core of the machines we test on (the suite's fixtures are built once per process).
+# Two processes, one per core of the machines we test on. Generated datasets are built once
+# per run whichever worker asks, and a module with module-scoped fixtures runs on one worker
+# (tests/conftest.py), so no fixture is built twice.
 PYTEST_WORKERS ?= 2
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS)
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup
 
 # Everything but the slow end-to-end tests.
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) -m "not slow"
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup -m "not slow"
 
 $(BASELINE_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet "$(TORCH)"

@@ -24,7 +24,7 @@ stft: the moving renderer against a reference STFT-domain renderer written here 
    to 1e-14), so the speed-up is not only that of one Python loop over frames.
 accuracy: both against a brute-force sample-by-sample time-varying convolution (SNR in
    dB), on circular walks (the delay-aware model's own sample-by-sample reference is in
-   tests/test_moving_ripple.py).
+   tests/dsp/test_moving_ripple.py).
 ripple: white noise through moving sources, frame power over the knot cycle (peak to
    peak, dB), broadband and per octave band 250 Hz - 8 kHz, plain crossfade vs
    delay-aware: simulated line passes and an arc (hybrid RIRs, FOA and mic4), and a walk

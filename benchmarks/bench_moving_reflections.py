@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_moving_reflections.py [--sources 8] [--rounds 3]
 
-accuracy: the image-source part of the paths of tests/test_moving_reflections.py (1.2 s
+accuracy: the image-source part of the paths of tests/acoustics/test_moving_reflections.py (1.2 s
    of pink noise, 24 kHz) against the dense physical reference (acoustics/reference.py:
    RIRs every 0.5 ms), waveform SNR in dB: before (one warp, the direct path's; knots
    every 100 ms / 4°, and on lines every 3 cm) and now (image groups each aligned by its

@@ -1,7 +1,7 @@
 """Run the command examples of docs/ and write what they print back into the pages.
 
     .venv/bin/python docs/examples.py            # run every example, rewrite the shown outputs (and pictures)
-    .venv/bin/python docs/examples.py --check    # run them, report outputs that differ (tests/test_doc_examples.py)
+    .venv/bin/python docs/examples.py --check    # run them, report outputs that differ (tests/project/test_doc_examples.py)
     .venv/bin/python docs/examples.py --jobs 2   # the page groups two at a time
 
 An example is a fenced ``bash`` or ``python`` block right after a marker line::
@@ -12,7 +12,7 @@ An example is a fenced ``bash`` or ``python`` block right after a marker line::
     <!-- run: needs torch -->    ... only when these modules are installed (skipped, its output kept, otherwise;
                                  TSEL_DOC_WITHOUT=torch,lhotse checks the pages as a core install sees them)
     <!-- file: NAME -->          not run: the block is written to NAME for the examples after it
-    <!-- no run: REASON -->      not run, and why (a Python block must carry a marker: tests/test_doc_examples.py)
+    <!-- no run: REASON -->      not run, and why (a Python block must carry a marker: tests/project/test_doc_examples.py)
 
 Pages run in groups (:data:`GROUPS`), each group in its own sandbox folder, its pages
 one after the other, so a page can use what an earlier one of its group made. A sandbox

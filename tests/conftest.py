@@ -1,32 +1,87 @@
+import atexit
+import fcntl
 import os
+import shutil
 import tempfile
+from dataclasses import dataclass
+from pathlib import Path
 
 import pytest
+
+from support.cli import InProcessCli
+from support.configs import DATASETS, SMALL
 
 # keep numerical libraries to one thread: the suite runs on 2 cores
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "PRA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
-# remembered clip checks go to a folder of this run, not the user's cache (subprocesses inherit it)
-os.environ.setdefault("TSEL_CACHE_DIR", tempfile.mkdtemp(prefix="tsel-test-cache-"))
-# and prepared clips (made by every full clip check) too, not beside the shared demo corpus's audio
-os.environ.setdefault("TSEL_CLIP_CACHE", tempfile.mkdtemp(prefix="tsel-test-clips-"))
+# remembered clip checks go to a folder of this run, not the user's cache (subprocesses
+# inherit it), and prepared clips (made by every full clip check) too, not beside the
+# shared demo corpus's audio; both removed when the run ends
+for _v, _prefix in (("TSEL_CACHE_DIR", "tsel-test-cache-"), ("TSEL_CLIP_CACHE", "tsel-test-clips-")):
+    if _v not in os.environ:
+        os.environ[_v] = tempfile.mkdtemp(prefix=_prefix)
+        atexit.register(shutil.rmtree, os.environ[_v], True)
 
 
 @pytest.fixture(scope="session")
-def demo_corpus(tmp_path_factory):
-    """The built-in synthetic corpus, made once per test session."""
+def shared_dir(tmp_path_factory) -> Path:
+    """A folder every worker of this run sees (xdist's workers each have a base folder
+    below one parent): what is built here is built once per run, not once per worker."""
+    base = tmp_path_factory.getbasetemp()
+    return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+
+
+def built_once(path: Path, build) -> Path:
+    """``path``, made by ``build(folder)`` by the first worker that asks (the others wait
+    on a lock), under a temporary name renamed when whole."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_name(path.name + ".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not path.exists():
+            tmp = path.with_name(path.name + ".building")
+            shutil.rmtree(tmp, ignore_errors=True)
+            tmp.mkdir()
+            build(tmp)
+            tmp.rename(path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def demo_corpus(shared_dir):
+    """The built-in synthetic corpus, made once per test run. Read it, never change it:
+    a test that edits clips works on a copy."""
     from tsel_data.corpus.demo import synth_corpus
 
-    d = tmp_path_factory.mktemp("demo-corpus")
-    synth_corpus(str(d), seed=0)
-    return str(d)
+    return str(built_once(shared_dir / "demo-corpus", lambda d: synth_corpus(str(d), seed=0)))
 
 
-SMALL = [
-    "audio.duration=3.0",
-    "output.shard_size=4",
-    'room.rt60=["uniform", 0.3, 0.5]',
-]
+@dataclass(frozen=True)
+class Generated:
+    cfg: object  # the Config it was generated with
+    out: str  # the dataset folder: read it, copy it to change it
+
+    def __iter__(self):  # cfg, out = generated_dataset("small")
+        return iter((self.cfg, self.out))
+
+
+@pytest.fixture(scope="session")
+def generated_dataset(shared_dir, demo_corpus):
+    """``generated_dataset(NAME)``: the dataset of ``support.configs.DATASETS[NAME]`` over
+    the demo corpus, made by the real ``generate()`` once per run and shared by every test
+    and worker that asks for it. Read it; a test that changes a dataset copies it first."""
+    from tsel_data.job.pipeline import generate
+
+    # a dataset stores its corpus folder relative to itself: at the depth of a test's
+    # ``tmp_path / "out"``, a test's own dataset made from the same config has the same bytes
+    home = shared_dir / "generated" if os.environ.get("PYTEST_XDIST_WORKER") else shared_dir
+
+    def make(name: str) -> Generated:
+        cfg = DATASETS[name].load(demo_corpus)
+        folder = built_once(home / (name if home != shared_dir else f"generated-{name}"),
+                            lambda d: generate(cfg, str(d / "ds"), workers=1, progress=False))
+        return Generated(cfg, str(folder / "ds"))
+
+    return make
 
 
 @pytest.fixture
@@ -41,34 +96,17 @@ def small_config(demo_corpus):
     return make
 
 
-class InProcessCli:
-    """``tsel ARGS`` through the real entry point (tsel_data.cli:main), in this process,
-    its output captured: quicker than a subprocess, and what a user sees."""
-
-    def __init__(self, capsys):
-        self.capsys = capsys
-
-    def run(self, *argv) -> tuple[int, str, str]:
-        from tsel_data.cli import main
-
-        with pytest.raises(SystemExit) as ex:
-            main([str(a) for a in argv])
-        out = self.capsys.readouterr()
-        return ex.value.code, out.out, out.err
-
-    def ok(self, *argv) -> str:
-        code, out, err = self.run(*argv)
-        assert code == 0, err
-        return out
-
-    def refused(self, *argv) -> str:
-        """The one ``error:`` line of a command that must fail with exit 2."""
-        code, _, err = self.run(*argv)
-        lines = [x for x in err.splitlines() if x.strip()]
-        assert code == 2 and len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err, err
-        return lines[0]
-
-
 @pytest.fixture
 def tsel_cli(capsys):
     return InProcessCli(capsys)
+
+
+def pytest_collection_modifyitems(items):
+    """Under ``--dist loadgroup`` every test of a module that uses a module-scoped fixture
+    runs on one worker, so the fixture is built once; all other tests spread one by one
+    (``make test``). Generated datasets need no group: ``generated_dataset`` is shared."""
+    for item in items:
+        defs = getattr(item, "_fixtureinfo", None)
+        if defs and any(d.scope == "module" for fd in defs.name2fixturedefs.values() for d in fd):
+            item.add_marker(pytest.mark.xdist_group(item.module.__name__))
+

@@ -20,7 +20,7 @@ leaks at most one tile past where the clip stops (-17 dB in the first 100 ms fra
 a stop, measured). It is what a very dense reverberation does to a sound (each tile
 arriving from a new mix of directions), without its smearing in time. The mixing's
 frequency resolution (fs / 256, 94 Hz) holds the coherence within 0.015 of theory even for
-the 56 cm linear bar (tests/test_render_physics.py).
+the 56 cm linear bar (tests/render/test_render_physics.py).
 """
 from __future__ import annotations
 

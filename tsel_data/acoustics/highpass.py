@@ -9,7 +9,7 @@ paid for it to run one second-order high-pass. Here:
   s = 0), and the bilinear transform z = (4 + s) / (4 - s), which puts both zeros at
   z = 1: H(z) = k (1 - z⁻¹)² / ((1 - q z⁻¹)(1 - q̄ z⁻¹)). Every step is the operation
   scipy's ``butter(2, f_c, "highpass", fs=fs, output="sos")`` performs, in its order, so
-  the coefficients are the same float64 numbers (tests/test_acoustics.py holds them to
+  the coefficients are the same float64 numbers (tests/acoustics/test_acoustics.py holds them to
   scipy's at many rates).
 - :func:`sosfilt` runs the recursion in scipy's compiled second-order-section loop (the
   one ``scipy.signal.sosfilt`` calls), loaded from its own file: the loop is a few

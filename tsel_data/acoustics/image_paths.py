@@ -14,7 +14,7 @@ deterministically): the direct path's group (with the reflections that move like
 warped by the direct path's own delay, exactly; each other group by the energy-weighted
 mean of its members' delay trajectories. Every image then moves continuously with its group's delay, to within its
 residual step (a fraction of a sample for most images, measured in
-tests/test_moving_reflections.py), and its gain is linear between knots. An image is
+tests/acoustics/test_moving_reflections.py), and its gain is linear between knots. An image is
 named by its key (:func:`tsel_data.acoustics.ism.image_positions`), so it stays in its
 group whatever the source's position, as the crossfade needs.
 """

@@ -1,5 +1,5 @@
 """The Farrow fractional-delay filters' coefficients, as designed by
-:func:`tsel_data.dsp.delaypath.design_farrow` (least squares; tests/test_timevarying.py
+:func:`tsel_data.dsp.delaypath.design_farrow` (least squares; tests/dsp/test_timevarying.py
 checks that they are still its result). Stored because the design is a 32,800 × 132
 least-squares solve: ~0.5 s of CPU in every process that renders a moving source, more
 where BLAS threads compete."""

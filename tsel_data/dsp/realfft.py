@@ -5,7 +5,7 @@ The simulators, the late tail and the noise fields call ``rfft``, ``irfft``,
 that ``scipy.fft`` wraps (:func:`~tsel_data.core.compiled.scipy_extension`), with the argument
 handling of ``scipy.fft._pocketfft.basic`` (dtype kept for float32/float64, zero-padding
 or truncation to ``n``, "backward" normalisation), so every sample, and every dataset's
-bytes, are what ``scipy.fft`` gives (tests/test_lean.py holds them equal). numpy's own FFT
+bytes, are what ``scipy.fft`` gives (tests/e2e/test_lean.py holds them equal). numpy's own FFT
 differs from scipy's in float32's last bits, and ducc0's (tsel_data.dsp.fft, the convolution)
 in all of them, so neither can stand in.
 """

@@ -28,7 +28,7 @@ s linear between the warped knot positions p_k + σ_k (where x[p_k] lands), eval
 a Farrow fractional delay (:func:`farrow_coefficients`: K_μ[j] = Σ_q μ^q C[q, j], 33 taps,
 μ = s - rint(s)); w'_k are the hat weights on the warped knot positions (= w_k at the
 emission times), and S_{-σ_k} moves knot k's piece back by whole samples and the Farrow
-kernel K_{-frac(σ_k)}. tests/test_moving_ripple.py has this sample by sample in float64
+kernel K_{-frac(σ_k)}. tests/dsp/test_moving_ripple.py has this sample by sample in float64
 (``reference``); the engine equals it to 110-135 dB SNR (float32).
 
 The direct path's steps d_{k+1} - d_k come from the RIRs themselves (:func:`delay_steps`;

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..acoustics.capsules import capsule_model
 from ..acoustics.late import csd_noise
-from ..core.geometry import array_to_room, sph_to_cart
+from ..core.geometry import SOUND_SPEED, array_to_room, sph_to_cart
 from ..corpus.ambience import omni_energy, read_segment, snr_gain
 from ..corpus.audio import active_rms, frame_activity, load_clip_cached
 from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
@@ -91,7 +91,7 @@ def _plane_wave(model, pose, az: float, el: float, fs: int) -> np.ndarray:
     """The receiver's response [C, L] to a far source at (az, el) of the array frame, unit
     amplitude at the centre (free field: one image, no walls)."""
     pos = array_to_room(sph_to_cart(az, el, BABBLE_DISTANCE), pose.centre, pose.yaw)[None, :]
-    n = int(np.ceil((BABBLE_DISTANCE + 0.5) / 343.0 * fs)) + 64
+    n = int(np.ceil((BABBLE_DISTANCE + 0.5) / SOUND_SPEED * fs)) + 64
     grid = model.new_grid(n)
     model.add(grid, pos, np.array([4 * np.pi * BABBLE_DISTANCE]), None)
     return model.render(grid).astype(np.float32)

@@ -1,0 +1,4 @@
+"""The config schema, presets and overrides.
+
+Shared fixtures (the demo corpus, generated datasets by name, the in-process CLI) are
+in tests/conftest.py; helpers in tests/support/."""

@@ -1,0 +1,4 @@
+"""Support every stage uses: geometry and the progress bar.
+
+Shared fixtures (the demo corpus, generated datasets by name, the in-process CLI) are
+in tests/conftest.py; helpers in tests/support/."""
