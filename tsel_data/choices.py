@@ -139,6 +139,18 @@ class CorpusFormat(StrEnum):
     AUTO = "auto"
 
 
+class RecordedSet(StrEnum):
+    """``recorded.dataset``: recorded SELD datasets in the DCASE layout (corpus/seld.py)."""
+
+    NONE = "none"
+    STARSS23 = "starss23"
+    STARSS22 = "starss22"
+    TAU_NIGENS_2020 = "tau-nigens-2020"
+    TAU_NIGENS_2021 = "tau-nigens-2021"
+    DCASE2025_STEREO = "dcase2025-stereo"
+    CUSTOM = "custom"
+
+
 class CheckLevel(StrEnum):
     """``corpus.check``: how much of each clip is verified before planning."""
 

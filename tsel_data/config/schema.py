@@ -11,9 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 
 from ..choices import (Additive, AudioCoding, BadClipPolicy, Baffle, CheckLevel, CorpusFormat, Fingerprint,
-                       HrtfInterpolation,
-                       LevelModel, Motion, NoiseSpectrum, Pairing, PathKind, QueryType, Relation, RirMethod, Scenario,
-                       SegmentRule, SensorLevel, SimilarityMeasure, values)
+                       HrtfInterpolation, LevelModel, Motion, NoiseSpectrum, Pairing, PathKind, QueryType,
+                       RecordedSet, Relation, RirMethod, Scenario, SegmentRule, SensorLevel, SimilarityMeasure, values)
 from ..core.jsonable import jsonable
 from ..receivers import NAMES as RECEIVER_NAMES
 from ..scene.distributions import Dist
@@ -102,10 +101,15 @@ class SplitConfig:
                                "manifest whose `split` column says which rows are whose")
     audio_dir: str = option("", "this split's audio folder, relative to `corpus.dir` (e.g. Clotho's `development`); "
                                 "default `corpus.audio_dir`", new=True)
-    count: int = option(0, "scenes to make (`--split NAME=COUNT` overrides)", unit="scenes", ge=0)
+    count: int = option(0, "scenes to make (`--split NAME=COUNT` overrides); recorded datasets: at most this many, "
+                           "every target when there are fewer", unit="scenes", ge=0)
     rooms: tuple = option((), "RIR-bank rooms this split may use (bank datasets), by name or number. Empty: the "
                               "rooms no other split names (every room when no split names any), so a split never "
-                              "draws another split's rooms; a room named by two splits is an error")
+                              "draws another split's rooms; a room named by two splits is an error. Recorded "
+                              "datasets: the rooms (`room{R}` of the file names, by number) it takes; empty: all")
+    folds: tuple = option((), "recorded datasets: the folds (`fold{N}` of the file names) this split takes; empty: "
+                              "the set's own split (STARSS23: train 3, test 4), or every recording when the set has "
+                              "none", new=True)
 
 
 @dataclass(frozen=True)
@@ -315,6 +319,34 @@ class NoiseConfig:
 
 
 @dataclass(frozen=True)
+class RecordedConfig:
+    """Scenes cut from real recordings of a SELD dataset in the DCASE layout (`corpus.dir`:
+    STARSS23 and the like), instead of rendered (docs/recorded.md). Each window of
+    `audio.duration` seconds gives a scene per source active long enough in it; the query is
+    one of its class's captions, or a relation the labels decide when another source of its
+    class is in the window. The receiver is `scene.format` (`foa` reads `foa_dev/`, `tetra`
+    `mic_dev/`, `stereo` `stereo_dev/`); scenes keep the recordings' rate (`audio.fs`)."""
+
+    dataset: str = option("none", "the recorded dataset whose layout, columns, classes and splits to use: "
+                                  "`starss23`, `starss22`, `tau-nigens-2020`, `tau-nigens-2021`, `dcase2025-stereo`, "
+                                  "`custom` (your own recordings: give `ontology`), or `none` (rendered scenes)",
+                          choices=RecordedSet, new=True)
+    hop: float = option(0.0, "step between windows; 0: the window length (`audio.duration`), so windows do not "
+                             "overlap", unit="s", ge=0.0, new=True)
+    min_active: float = option(1.0, "a source becomes a target when it is active at least this long in the window",
+                               unit="s", gt=0.0, new=True)
+    ontology: str = option("", "a file of your classes and their captions (CSV `index,name,captions` with captions "
+                               "joined by `|`, or JSON); empty: the dataset's built-in classes", path=True, new=True)
+    columns: tuple = option((), "the label CSV's columns, when they are not the set's own: names from `frame`, "
+                                "`class`, `source`, `azimuth`, `elevation`, `distance` (cm), `ignore`, e.g. "
+                                "`[\"frame\", \"class\", \"source\", \"azimuth\", \"elevation\"]`", new=True)
+
+    @property
+    def on(self) -> bool:
+        return self.dataset != RecordedSet.NONE
+
+
+@dataclass(frozen=True)
 class OutputConfig:
     """How scenes are stored."""
 
@@ -343,6 +375,7 @@ class Config:
     array: ArrayConfig = field(default_factory=ArrayConfig)
     sources: SourcesConfig = field(default_factory=SourcesConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
+    recorded: RecordedConfig = field(default_factory=RecordedConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
     def to_dict(self, every_key: bool = False) -> dict:
@@ -369,9 +402,10 @@ class Config:
 
 SECTIONS = {
     "corpus": CorpusConfig, "audio": AudioConfig, "scene": SceneConfig, "room": RoomConfig,
-    "array": ArrayConfig, "sources": SourcesConfig, "noise": NoiseConfig, "output": OutputConfig,
+    "array": ArrayConfig, "sources": SourcesConfig, "noise": NoiseConfig, "recorded": RecordedConfig,
+    "output": OutputConfig,
 }
-NEW_SECTIONS = {"noise"}
+NEW_SECTIONS = {"noise", "recorded"}
 TOP_KEYS = ("name", "seed", "on_bad_clip", "splits", *SECTIONS)
 TOP_FIELDS = ("name", "seed", "on_bad_clip")
 

@@ -168,11 +168,10 @@ def inputs_here(out_dir: str, shard_recipes: list, roots: Roots, verb: str, cont
     missing = sorted({name for st in stats for name in missing_inputs(st)})
     if not missing:
         return stats
-    banks = {r.bank.path for recipes in shard_recipes for r in recipes if r.bank}
-    hrtfs = {r.array.hrtf for recipes in shard_recipes for r in recipes if r.array.hrtf}
-    if missing[0] in banks:
+    kind = {name: root for recipes in shard_recipes for r in recipes for root, name in r.input_files()}
+    if kind.get(missing[0]) == "bank":
         where, flag = f"the RIR bank is not at {roots.bank_file(missing[0])}", "--bank"
-    elif missing[0] in hrtfs:
+    elif kind.get(missing[0]) == "hrtf":
         where, flag = f"the HRTF is not at {roots.hrtf_file(missing[0])}", "--set array.hrtf=PATH"
     else:
         where = f"{len(missing)} clip(s) are not in the corpus at {roots.corpus}, e.g. {missing[0]}"

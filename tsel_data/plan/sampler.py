@@ -15,7 +15,7 @@ import zlib
 import numpy as np
 
 from ..banks.scenes import BankRequest, open_bank_cached, resolve_bank, split_rooms
-from ..choices import (LevelModel, NoiseSpectrum, Pairing, QueryType, Relation, Role, Scenario, SensorLevel,
+from ..choices import (LevelModel, NoiseSpectrum, Pairing, QueryType, Role, Scenario, SensorLevel,
                        SimilarityMeasure, Spatial)
 from ..config import Config, rooms_without_bank
 from ..config.receiver import array_pose, hrtf_problem
@@ -26,6 +26,7 @@ from ..corpus.clip import Clip
 from ..errors import TselError
 from ..receivers import receiver
 from ..runtime.pool import ordered_pool
+from ..scene.queries import margins as relation_margins
 from ..scene.recipe import BUILTIN_DEMO_BANK, BankRef, NoiseItem, QueryPlan, Roots, SceneRecipe, Source, plan_roots
 from ..store.layout import Layout
 from .catalog import MIN_CLIPS, CatalogScan, build_catalog, resolve_corpus_dir
@@ -379,10 +380,7 @@ class _QueryDraws:
                                  if ix.clip_sims(ix.caption_id(self.t, k), others).max() <= sc.caption_similarity)
         kinds = set(self.pairings[1:])
         pairing = "same-kind" if matches else (kinds.pop() if len(kinds) == 1 else "mixed")
-        margins = {Relation.LOUDEST: sc.margin_level, Relation.QUIETEST: sc.margin_level,
-                   Relation.NEAREST: sc.margin_distance, Relation.FARTHEST: sc.margin_distance,
-                   Relation.STARTS_FIRST: sc.margin_onset, Relation.STARTS_LAST: sc.margin_onset,
-                   Relation.MOVING: sc.margin_motion, Relation.HEARD_AT: sc.margin_solo}
+        margins = relation_margins(sc)
         order = tuple(str(r) for r in self.qrng.permutation(list(sc.relations)))
         return QueryPlan(wanted=self.wanted, relations=order, matches=matches, alternatives=alternatives,
                          wording=int(self.qrng.integers(1 << 30)), pairing=pairing,

@@ -12,6 +12,7 @@ its inputs: the same recipe gives the same query on any worker.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,42 +25,12 @@ from ..errors import AudioError
 # have constant labels; this only absorbs float rounding).
 STILL_DEG = 0.5
 
-# Several wordings per relation; the scene's QueryPlan.wording picks one. {t}: seconds.
-WORDINGS = {
-    Relation.LOUDEST: ("the loudest sound", "the sound that is loudest at the microphones",
-                       "whatever is loudest in the scene", "the most prominent sound"),
-    Relation.QUIETEST: ("the quietest sound", "the faintest sound in the scene", "the softest of the sounds",
-                        "the sound that is quietest at the microphones"),
-    Relation.NEAREST: ("the nearest sound", "the sound closest to the microphones", "the source nearest to the array",
-                       "whatever is making a sound closest by"),
-    Relation.FARTHEST: ("the farthest sound", "the sound farthest from the microphones", "the most distant source",
-                        "whatever is making a sound furthest away"),
-    Relation.STARTS_FIRST: ("the sound that starts first", "the first sound to begin", "whatever is heard first",
-                            "the source that begins before the others"),
-    Relation.STARTS_LAST: ("the sound that starts last", "the last sound to begin", "the sound that comes in last",
-                           "the source that begins after the others"),
-    Relation.MOVING: ("the moving sound", "the sound that moves", "the source that is in motion",
-                      "the one sound that changes position"),
-    Relation.HEARD_AT: ("the sound heard at {t} seconds", "what is audible at {t} s", "the only sound at the {t} second mark",
-                        "the source sounding at {t} s"),
-}
-
 # Composite: a caption that fits n sources, and the relation that tells them apart.
 # {cap}: the caption (first letter lower-cased), {Cap}: as written, {n}: "two", "three"...,
 # {one}: the relation as a noun phrase.
 COMPOSITE_WORDINGS = ("{Cap}: the {one}", "of the {n} sounds that fit \"{cap}\", the {one}",
                       "the {one} of the {n} sources where {cap}", "{Cap} (the {one} of the {n})")
-_ONE = {  # (for two, for more)
-    Relation.LOUDEST: ("louder one", "loudest one"), Relation.QUIETEST: ("quieter one", "quietest one"),
-    Relation.NEAREST: ("nearer one", "nearest one"), Relation.FARTHEST: ("farther one", "farthest one"),
-    Relation.STARTS_FIRST: ("one that starts first", "one that starts first"),
-    Relation.STARTS_LAST: ("one that starts last", "one that starts last"),
-    Relation.MOVING: ("one that moves", "one that moves"),
-    Relation.HEARD_AT: ("one heard at {t} s", "one heard at {t} s"),
-}
 _NUMBERS = ("zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten")
-UNITS = {Relation.LOUDEST: "dB", Relation.QUIETEST: "dB", Relation.NEAREST: "m", Relation.FARTHEST: "m",
-         Relation.STARTS_FIRST: "s", Relation.STARTS_LAST: "s", Relation.MOVING: "deg", Relation.HEARD_AT: "s"}
 
 
 @dataclass(frozen=True)
@@ -134,56 +105,133 @@ def solo_time(truth: Truth, others, window: float):
     return t, hi - lo
 
 
+def _level(sign: int):
+    def measure(truth: Truth, others: list[int], margin: float):
+        lv = truth.level_db
+        return (lv[0] - lv[others].max() if sign > 0 else lv[others].min() - lv[0]), {}
+    return measure
+
+
+def _distance(sign: int):
+    def measure(truth: Truth, others: list[int], margin: float):
+        if not truth.directional[[0] + others].all():
+            return None  # an additive source has no distance: "the nearest" would be ill-posed
+        d0, do = truth.distance[0], truth.distance[others]
+        return float(np.min(do.min(axis=0) - d0) if sign > 0 else np.min(d0 - do.max(axis=0))), {}
+    return measure
+
+
+def _onset(sign: int):
+    def measure(truth: Truth, others: list[int], margin: float):
+        on = onsets(truth.active, truth.hop)
+        value = on[others].min() - on[0] if sign > 0 else on[0] - on[others].max()
+        return value, {"onsets": [round(float(on[k]), 3) for k in [0] + others]}
+    return measure
+
+
+def _moving(truth: Truth, others: list[int], margin: float):
+    if not truth.directional[0]:
+        return None
+    moved = [travel(truth.azimuth[k], truth.elevation[k]) if truth.directional[k] else 0.0 for k in others]
+    if max(moved) > STILL_DEG:
+        return None
+    return travel(truth.azimuth[0], truth.elevation[0]), {"others_travel": round(max(moved), 3)}
+
+
+def _heard_at(truth: Truth, others: list[int], margin: float):
+    found = solo_time(truth, others, margin)
+    return None if found is None else (found[1], {"time": found[0]})
+
+
+@dataclass(frozen=True)
+class RelationSpec:
+    """Everything about one relation: its wordings (``{t}``: seconds), the noun phrase a
+    composite query uses for two sources and for more (``one``), the unit of its evidence,
+    the ``scene`` config key of its margin, what it is measured on (``needs``: ``level``,
+    the rendered levels a recording does not have; ``distance``; or nothing beyond
+    activity and direction), and ``measure(truth, others, margin)`` -> (value, extra
+    evidence), or None when it cannot hold."""
+
+    wordings: tuple[str, ...]
+    one: tuple[str, str]
+    unit: str
+    margin_key: str
+    measure: Callable
+    needs: str = ""
+
+
+# One entry per relation (choices.Relation): adding a relation is its enum value, its
+# spec here and its margin key in config/schema.py.
+RELATIONS = {
+    Relation.LOUDEST: RelationSpec(
+        ("the loudest sound", "the sound that is loudest at the microphones", "whatever is loudest in the scene",
+         "the most prominent sound"), ("louder one", "loudest one"), "dB", "margin_level", _level(+1), "level"),
+    Relation.QUIETEST: RelationSpec(
+        ("the quietest sound", "the faintest sound in the scene", "the softest of the sounds",
+         "the sound that is quietest at the microphones"), ("quieter one", "quietest one"), "dB", "margin_level",
+        _level(-1), "level"),
+    Relation.NEAREST: RelationSpec(
+        ("the nearest sound", "the sound closest to the microphones", "the source nearest to the array",
+         "whatever is making a sound closest by"), ("nearer one", "nearest one"), "m", "margin_distance",
+        _distance(+1), "distance"),
+    Relation.FARTHEST: RelationSpec(
+        ("the farthest sound", "the sound farthest from the microphones", "the most distant source",
+         "whatever is making a sound furthest away"), ("farther one", "farthest one"), "m", "margin_distance",
+        _distance(-1), "distance"),
+    Relation.STARTS_FIRST: RelationSpec(
+        ("the sound that starts first", "the first sound to begin", "whatever is heard first",
+         "the source that begins before the others"), ("one that starts first", "one that starts first"), "s",
+        "margin_onset", _onset(+1)),
+    Relation.STARTS_LAST: RelationSpec(
+        ("the sound that starts last", "the last sound to begin", "the sound that comes in last",
+         "the source that begins after the others"), ("one that starts last", "one that starts last"), "s",
+        "margin_onset", _onset(-1)),
+    Relation.MOVING: RelationSpec(
+        ("the moving sound", "the sound that moves", "the source that is in motion",
+         "the one sound that changes position"), ("one that moves", "one that moves"), "deg", "margin_motion",
+        _moving),
+    Relation.HEARD_AT: RelationSpec(
+        ("the sound heard at {t} seconds", "what is audible at {t} s", "the only sound at the {t} second mark",
+         "the source sounding at {t} s"), ("one heard at {t} s", "one heard at {t} s"), "s", "margin_solo",
+        _heard_at),
+}
+WORDINGS = {r: spec.wordings for r, spec in RELATIONS.items()}
+UNITS = {r: spec.unit for r, spec in RELATIONS.items()}
+
+
+def margins(scene_config) -> dict:
+    """{relation: margin} of a config's ``scene`` section (each spec's ``margin_key``)."""
+    return {r: getattr(scene_config, spec.margin_key) for r, spec in RELATIONS.items()}
+
+
 def check(relation: str, truth: Truth, others, margin: float) -> dict | None:
     """The evidence that the target (source 0) stands in ``relation`` to every source of
     ``others`` with at least ``margin``, or None when it does not."""
     others = [int(k) for k in others]
     if not others:
         return None
-    value, extra = None, {}
-    lv = truth.level_db
-    if relation == Relation.LOUDEST:
-        value = lv[0] - lv[others].max()
-    elif relation == Relation.QUIETEST:
-        value = lv[others].min() - lv[0]
-    elif relation in (Relation.NEAREST, Relation.FARTHEST):
-        if not truth.directional[[0] + others].all():
-            return None  # an additive source has no distance: "the nearest" would be ill-posed
-        d0, do = truth.distance[0], truth.distance[others]
-        value = float(np.min(do.min(axis=0) - d0) if relation == Relation.NEAREST else np.min(d0 - do.max(axis=0)))
-    elif relation in (Relation.STARTS_FIRST, Relation.STARTS_LAST):
-        on = onsets(truth.active, truth.hop)
-        value = on[others].min() - on[0] if relation == Relation.STARTS_FIRST else on[0] - on[others].max()
-        extra = {"onsets": [round(float(on[k]), 3) for k in [0] + others]}
-    elif relation == Relation.MOVING:
-        if not truth.directional[0]:
-            return None
-        moved = [travel(truth.azimuth[k], truth.elevation[k]) if truth.directional[k] else 0.0 for k in others]
-        if max(moved) > STILL_DEG:
-            return None
-        value = travel(truth.azimuth[0], truth.elevation[0])
-        extra = {"others_travel": round(max(moved), 3)}
-    elif relation == Relation.HEARD_AT:
-        found = solo_time(truth, others, margin)
-        if found is None:
-            return None
-        extra, value = {"time": found[0]}, found[1]
-    else:
-        raise ValueError(f"unknown relation {relation!r}")
+    try:
+        spec = RELATIONS[relation]
+    except KeyError:
+        raise ValueError(f"unknown relation {relation!r}") from None
+    found = spec.measure(truth, others, margin)
+    if found is None:
+        return None
+    value, extra = found
     if not np.isfinite(value) or value < margin:
         return None
-    return {"relation": str(relation), "value": round(float(value), 3), "unit": UNITS[relation], "margin": margin,
+    return {"relation": str(relation), "value": round(float(value), 3), "unit": spec.unit, "margin": margin,
             "against": others, **extra}
 
 
 def relational_wordings(relation: str, evidence: dict) -> tuple[str, ...]:
     t = evidence.get("time")
-    return tuple(w.format(t=f"{t:.1f}" if t is not None else "") for w in WORDINGS[relation])
+    return tuple(w.format(t=f"{t:.1f}" if t is not None else "") for w in RELATIONS[relation].wordings)
 
 
 def composite_wordings(relation: str, caption: str, n: int, evidence: dict) -> tuple[str, ...]:
     t = evidence.get("time")
-    one = _ONE[relation][0 if n == 2 else 1].format(t=f"{t:.1f}" if t is not None else "")
+    one = RELATIONS[relation].one[0 if n == 2 else 1].format(t=f"{t:.1f}" if t is not None else "")
     cap = caption.strip().rstrip(".")
     low = cap if cap[1:2].isupper() else cap[:1].lower() + cap[1:]  # "TV ..." keeps its capitals
     return tuple(w.format(Cap=cap[:1].upper() + cap[1:], cap=low, n=_NUMBERS[n] if n < len(_NUMBERS) else str(n),

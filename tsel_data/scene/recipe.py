@@ -22,6 +22,7 @@ from ..choices import Role, Scenario, Spatial, values
 from ..core.geometry import Room, interpolate_positions, room_to_array
 from ..errors import DatasetError, GeometryError
 from ..receivers import RECEIVERS, ArrayPose
+from .recorded import KIND as RECORDED, RecordedRecipe
 
 SCENARIOS = values(Scenario)
 
@@ -283,6 +284,15 @@ class SceneRecipe:
     def moving(self) -> bool:
         return any(s.moving for s in self.sources)
 
+    def input_files(self):
+        """(root, name) of every file the scene reads: clips (corpus), ambience
+        recordings, the RIR bank, an HRTF (:meth:`Roots.path` resolves each)."""
+        out = [("corpus", s.audio) for s in self.sources] + [("corpus", c[0]) for n in self.noise for c in n.clips]
+        out += [("ambience", n.file) for n in self.noise if n.file]
+        out += [("bank", self.bank.path)] if self.bank else []
+        out += [("hrtf", a.hrtf) for a in (self.array, *self.receivers) if a.hrtf]
+        return out
+
     # --- serialisation -------------------------------------------------------------
     def to_dict(self) -> dict:
         # hand-written rather than dataclasses.asdict: planning 100k scenes is dominated
@@ -401,14 +411,15 @@ class Roots:
                               clips=tuple((self.clip(c[0]), *c[1:]) for c in n.clips)) for n in recipe.noise)
         return replace(recipe, sources=sources, bank=bank, array=here[0], receivers=tuple(here[1:]), noise=noise)
 
+    def path(self, root: str, name: str) -> str:
+        """A file a recipe names (``root``: ``corpus``, ``ambience``, ``bank``, ``hrtf``) as
+        a path on this machine."""
+        return {"corpus": self.clip, "ambience": self.ambience_file, "bank": self.bank_file,
+                "hrtf": self.hrtf_file}[root](name)
+
     def inputs(self, recipes) -> list[tuple[str, str]]:
         """[(name as the plan says it, path here)] of every file ``recipes`` read, sorted."""
-        names = {s.audio for r in recipes for s in r.sources} | {c[0] for r in recipes for n in r.noise for c in n.clips}
-        out = {(n, self.clip(n)) for n in names}
-        out |= {(n.file, self.ambience_file(n.file)) for r in recipes for n in r.noise if n.file}
-        out |= {(r.bank.path, self.bank_file(r.bank.path)) for r in recipes if r.bank}
-        out |= {(a.hrtf, self.hrtf_file(a.hrtf)) for r in recipes for a in (r.array, *r.receivers) if a.hrtf}
-        return sorted(out)
+        return sorted({(name, self.path(root, name)) for r in recipes for root, name in r.input_files()})
 
 
 def plan_roots(cfg, home) -> Roots:
@@ -452,11 +463,17 @@ def read_plan(path) -> list[SceneRecipe]:
     return out
 
 
+def recipe_from_dict(d: dict):
+    """A plan line's recipe: a rendered scene's :class:`SceneRecipe`, or a recorded
+    scene's (``"kind": "recorded"``, :class:`~tsel_data.scene.recorded.RecordedRecipe`)."""
+    return RecordedRecipe.from_dict(d) if d.get("kind") == RECORDED else SceneRecipe.from_dict(d)
+
+
 def recipe_from_line(path, n: int, raw: bytes | str) -> SceneRecipe:
     """The recipe on line ``n`` (1-based) of plan file ``path`` (DatasetError naming the
     line when it is damaged)."""
     try:
-        return SceneRecipe.from_json(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
+        return recipe_from_dict(json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw))
     except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
         raise DatasetError(f"{path}:{n}: damaged scene recipe ({type(e).__name__}: {str(e)[:80]}); plan again "
                            f"into a new --out") from None
