@@ -41,7 +41,8 @@ def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems, sheet, n_scenes, 
     note_unfinished(dataset_dir)
     found = find_scene(dataset_dir, scene, split, receiver)
     outputs = inspect_outputs(png, wav)
-    stems = wav and not no_stems
+    recorded = found.record is not None and found.record.recorded
+    stems = wav and not no_stems and not recorded  # a recording's sources were recorded together
     if stems:
         from ..job.stems import stem_paths, write_stems  # rendering: scipy and the simulators load only here
 
@@ -53,6 +54,8 @@ def inspect_cmd(dataset_dir, scene, split, png, wav, no_stems, sheet, n_scenes, 
             click.echo(f"picture: {png}")
         if wav:
             click.echo(f"audio: {wav} (all channels), {stereo_path(wav)} (headphones)")
+        if wav and recorded and not no_stems:
+            click.echo("note: no stems: the sources of a recorded scene were recorded together", err=True)
         if stems:
             try:
                 paths, same = write_stems(dataset_dir, found, wav, corpus_dir, bank)

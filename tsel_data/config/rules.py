@@ -21,7 +21,7 @@ from dataclasses import fields
 from ..acoustics.metrics import sabine_min_rt60
 from ..choices import LevelModel, Pairing, QueryType, Relation, SimilarityMeasure, values
 from ..errors import ConfigError, GeometryError
-from ..receivers import canonical
+from ..receivers import canonical, receiver
 from ..scene.distributions import Dist
 from .receiver import array_poses, receiver_problems
 from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
@@ -226,6 +226,7 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
                                f"set corpus.check = \"header\" (or \"full\")"))
     out += _query_problems(cfg, where)
     out += _noise_problems(cfg, where)
+    out += _recorded_problems(cfg, where)
     receiver_errors = receiver_problems(cfg, at(where, "array.capsules", "array.patterns", "array.orientations",
                                                 "array.hrtf", "scene.receivers", "scene.format"))
     out += receiver_errors
@@ -246,6 +247,41 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
                     f"{where}: room.rt60 minimum {rt[0]} s is below what pyroomacoustics can make in the largest "
                     f"room ({limit:.2f} s: Sabine's RT60 with fully absorbing walls); raise room.rt60, shrink the "
                     f"room, or use room.rir_method = \"hybrid\""))
+    return out
+
+
+RECORDED_FOLDERS = ("foa", "mic", "stereo")  # the audio folders of the DCASE layout (a receiver's export_folder)
+RECORDED_COLUMNS = ("frame", "class", "source", "azimuth", "elevation", "distance", "ignore")
+
+
+def _recorded_problems(cfg: Config, where: str) -> list[ConfigError]:
+    """What a recorded dataset (docs/recorded.md) cannot take: anything that renders."""
+    rec = cfg.recorded
+    if not rec.on:
+        return []
+    out = []
+    if cfg.room.bank:
+        out.append(ConfigError(f"{at(where, 'room.bank', 'recorded.dataset')}: recorded scenes are cut from "
+                               f"recordings, not rendered through an RIR bank; remove room.bank"))
+    if cfg.scene.receivers:
+        out.append(ConfigError(f"{at(where, 'scene.receivers')}: a recording is heard by the one receiver it was "
+                               f"made with (scene.format); remove scene.receivers"))
+    noisy = [k for k in ("ambience", "diffuse", "babble", "sensor")
+             if getattr(cfg.noise, k) not in ("", "none", 0)]
+    if noisy:
+        out.append(ConfigError(f"{at(where, 'noise.' + noisy[0])}: a recording holds the room's own noise; "
+                               f"[noise] does not apply to recorded scenes"))
+    if canonical(cfg.scene.format) is not None and receiver(cfg.scene.format).export_folder not in RECORDED_FOLDERS:
+        out.append(ConfigError(f"{at(where, 'scene.format')}: recorded datasets are foa (foa_dev/), tetra (mic_dev/) "
+                               f"or stereo (stereo_dev/) recordings, not {cfg.scene.format!r}"))
+    bad = [c for c in rec.columns if c not in RECORDED_COLUMNS]
+    if bad or (rec.columns and not {"frame", "class"} <= set(rec.columns)):
+        out.append(ConfigError(f"{at(where, 'recorded.columns')}: columns are named from "
+                               f"{', '.join(RECORDED_COLUMNS)} and include frame and class"
+                               + (f"; {bad[0]!r} is not one" if bad else "")))
+    if rec.dataset == "custom" and not rec.ontology:
+        out.append(ConfigError(f"{at(where, 'recorded.ontology')}: recorded.dataset = \"custom\" needs your "
+                               f"classes: recorded.ontology = FILE (docs/recorded.md)"))
     return out
 
 
@@ -308,8 +344,9 @@ def _query_problems(cfg: Config, where: str) -> list[ConfigError]:
 
 
 def rooms_without_bank(cfg: Config) -> ConfigError | None:
-    """A split that makes scenes names bank rooms but ``room.bank`` is empty."""
-    roomed = [n for n, sp in cfg.splits.items() if sp.rooms and sp.count]
+    """A split that makes scenes names bank rooms but ``room.bank`` is empty (a recorded
+    dataset's rooms are its recordings')."""
+    roomed = [n for n, sp in cfg.splits.items() if sp.rooms and sp.count and not cfg.recorded.on]
     if roomed and not cfg.room.bank:
         return ConfigError(f"splits.{roomed[0]}.rooms names RIR-bank rooms but room.bank is not set; pass --bank "
                            f"PATH (a TAU-SRIR DB folder, SOFA files or a tsel bank) or remove the rooms")

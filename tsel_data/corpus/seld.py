@@ -172,10 +172,10 @@ def columns_of(seld: SeldSet, width: int, override: tuple = ()) -> tuple | None:
     return seld.columns.get(width)
 
 
-def read_labels(path: str, seld: SeldSet, ontology: Ontology, override: tuple = ()) -> Labels:
+def read_labels(path: str, seld: SeldSet, ontology: Ontology | None, override: tuple = ()) -> Labels:
     """A label CSV, checked row by row: ConfigError naming ``path`` and the row when a row
     is not one of the set's widths of whole numbers, a class is not in ``ontology``, a frame
-    is negative, an azimuth is outside [-180, 180] or an elevation outside [-90, 90], or a
+    is negative (``ontology`` None: any class), an azimuth is outside [-180, 180] or an elevation outside [-90, 90], or a
     distance is negative. Azimuth and elevation may be left empty together (a source
     without a direction)."""
     widths = sorted({len(override)} if override else seld.columns)
@@ -218,7 +218,7 @@ def read_labels(path: str, seld: SeldSet, ontology: Ontology, override: tuple = 
                 parsed[key] = int(v)
         if parsed["frame"] < 0:
             raise ConfigError(f"{path}:{n}: frame {parsed['frame']} is negative; frames count from 0")
-        if parsed["class"] not in ontology:
+        if ontology is not None and parsed["class"] not in ontology:
             raise ConfigError(f"{path}:{n}: class {parsed['class']} is not in the ontology (classes "
                               f"{min(ontology)}-{max(ontology)} of {seld.name}); give your classes with "
                               f"recorded.ontology")

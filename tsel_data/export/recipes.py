@@ -13,6 +13,7 @@ from collections import defaultdict
 from ..core.digest import sha256_file
 from ..core.version import __version__
 from ..errors import DatasetError
+from ..scene.recipe import corpus_files
 from ..store.layout import CONFIG_FILE, DATASET_FILE, Layout
 from ..store.plans import local_roots, read_plan_doc, read_plan_lines
 from ..store.release import (CLIPS_FILE, DIGESTS, RELEASE_FILE, RELEASE_KIND, RELEASE_VERSION, checksums_file,
@@ -20,12 +21,14 @@ from ..store.release import (CLIPS_FILE, DIGESTS, RELEASE_FILE, RELEASE_KIND, RE
 from .base import SplitResult, Writer, WriterOption
 from .card import config_hash
 
-BUILTIN = {"builtin:demo": "demo_corpus", "builtin:demo-bank": "demo_bank"}
+BUILTIN = {"builtin:demo": "demo_corpus", "builtin:demo-bank": "demo_bank",
+           "builtin:demo-recorded": "demo_recordings"}
 
 
 def recipe_clips(line: str) -> list[str]:
-    """The clip files (relative to the corpus) a recipe line reads."""
-    return [s["audio"] for s in json.loads(line)["sources"]]
+    """The files (relative to the corpus) a recipe line reads: clips, or a recording and
+    its labels."""
+    return [name for name, _, _ in corpus_files(json.loads(line))]
 
 
 class RecipesWriter(Writer):
@@ -77,13 +80,11 @@ class RecipesWriter(Writer):
                 for line in f:
                     if not line.strip():
                         continue
-                    recipe = json.loads(line)
-                    for s in recipe["sources"]:
-                        entry = uses.setdefault(s["audio"], {"clip_id": s["clip_id"], "captions": s["captions"],
-                                                             "splits": []})
+                    for name, clip_id, captions in corpus_files(json.loads(line)):
+                        entry = uses.setdefault(name, {"clip_id": clip_id, "captions": captions, "splits": []})
                         if split not in entry["splits"]:
                             entry["splits"].append(split)
-                        scenes_of[s["audio"]] += 1
+                        scenes_of[name] += 1
         clips = []
         b = job.bar(len(uses), "hash clips")
         for name in sorted(uses):

@@ -26,6 +26,7 @@ from ..config.receiver import array_poses
 from ..core.atomic import write_error, write_json, write_lines
 from ..errors import ConfigError, DatasetError, TselError
 from ..plan.catalog import reuse_stop, write_bad_clips, write_missing_clips
+from ..plan.recorded import plan_recorded, recorded_corpus
 from ..plan.sampler import plan_split_json, prepare_views
 from ..scene.recipe import plan_roots
 from ..store.layout import Layout
@@ -180,7 +181,8 @@ def estimate_bytes(cfg: Config) -> int:
     a = cfg.audio
     n_scenes = sum(sp.count for sp in cfg.splits.values())
     frames = int(round(a.duration / a.label_hop))
-    n_src = int((cfg.scene.interferers.bounds or (1, 1))[1]) + 1
+    # a recorded window holds as many sources as were annotated: STARSS23 has up to 6 at once
+    n_src = 8 if cfg.recorded.on else int((cfg.scene.interferers.bounds or (1, 1))[1]) + 1
     per_scene = (sum(p.n_channels for p in array_poses(cfg, side=0.1)) * int(round(a.duration * a.fs)) * 4
                  + n_src * frames * LABEL_BYTES_PER_SOURCE_FRAME + OVERHEAD_BYTES_PER_SCENE)
     return n_scenes * per_scene
@@ -245,7 +247,11 @@ def _plan_locked(cfg: Config, layout: Layout, workers: int, resume: bool, grow: 
             grown = growth(diffs) if grow else None
             if grown is None:
                 raise _refuse(out_dir, layout, diffs, grow)
+            if cfg.recorded.on:
+                return _plan_recorded(cfg, layout, report, grown)
             return _grow(cfg, layout, grown, workers, progress, report, allow_reuse)
+    if cfg.recorded.on:
+        return _plan_recorded(cfg, layout, report)
     catalog, views = _catalog(cfg, layout, workers, progress, report, allow_reuse)
     plans = {split: plan_split_json(cfg, split, views[split], workers, progress=progress) if sp.count else []
              for split, sp in cfg.splits.items()}
@@ -318,6 +324,36 @@ def _write_plan(cfg: Config, layout: Layout, catalog, plans: dict[str, list[str]
     doc = plan_doc(portable_roots(cfg.to_dict(), layout.root), {s: len(c) for s, c in catalog.clips.items()},
                    len(catalog.bad), missing, plans)
     write_json(layout.config_file, doc)
+
+
+def _plan_recorded(cfg: Config, layout: Layout, report, grown: dict | None = None) -> dict:
+    """Plan a recorded dataset (:mod:`tsel_data.plan.recorded`), or grow one: the scenes
+    already planned must come out the same (else the recordings or their labels changed).
+    The stored config counts the scenes planned (a count asks for at most so many); the
+    counts asked and what was kept or skipped, and why, are the plan's ``recorded``."""
+    plans, summary = plan_recorded(cfg, recorded_corpus(cfg, layout), report)
+    for split in grown or ():
+        before = read_plan_lines(layout, split)
+        if plans.get(split, [])[:len(before)] != before:
+            raise DatasetError(f"{layout.root}: the scenes of {split} would now be planned differently (the "
+                               f"recordings or their labels changed since the plan); growing would mix two: generate "
+                               f"the larger dataset into a new --out")
+    if grown:
+        _remove(layout, [layout.dataset_file])
+        for split, (planned, _) in grown.items():
+            if planned % cfg.output.shard_size:
+                last = planned // cfg.output.shard_size
+                _remove(layout, [*reversed(layout.shard_files(split, last)), layout.seal_file(split, last)])
+    plans = {split: plans.get(split, []) for split in cfg.splits}
+    config = cfg.to_dict()
+    for split, lines in plans.items():
+        config["splits"][split]["count"] = len(lines)
+    for split, lines in plans.items():
+        write_lines(layout.plan_file(split), lines)
+    doc = plan_doc(portable_roots(config, layout.root), {}, 0, None, plans)
+    doc["recorded"] = summary
+    write_json(layout.config_file, doc)
+    return {split: len(lines) for split, lines in plans.items()}
 
 
 def _grow(cfg: Config, layout: Layout, grown: dict[str, tuple[int, int]], workers: int, progress, report,

@@ -25,6 +25,7 @@ from ..config.receiver import array_poses, hrtf_problem
 from ..core.report import CheckReport
 from ..errors import DatasetError, TselError
 from ..plan.catalog import BUILTIN_DEMO, resolve_corpus_dir, reuse_stop, scan_catalog
+from ..plan.recorded import plan_recorded, recorded_corpus
 from ..plan.sampler import CatalogView, ambience_problems, bank_request, extended_queries, plan_split_json
 from ..store.layout import Layout
 from .pipeline import check_ownership, estimate_bytes, plan_differences, planned_with
@@ -54,6 +55,8 @@ def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan
         rep.error(e)
     if rep.errors:
         return rep  # later checks assume sane fields
+    if cfg.recorded.on:
+        return _check_recorded(cfg, out_dir, rep, plan)
     for e in geometry_problems(cfg):
         rep.error(e)
     rep.facts["receivers"] = [{"name": p.format, "channels": p.n_channels} for p in array_poses(cfg, side=0.1)]
@@ -73,7 +76,33 @@ def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan
     return rep
 
 
-def _check_out_dir(cfg: Config, out_dir: str, rep: CheckReport) -> None:
+def _check_recorded(cfg: Config, out_dir, rep: CheckReport, plan: bool) -> CheckReport:
+    """A recorded dataset's checks (docs/recorded.md): the output folder, the layout, every
+    recording and label file of the splits, and the plan made in memory: how many targets
+    each split keeps, and how many it skips and why."""
+    rep.facts["receivers"] = [{"name": p.format, "channels": p.n_channels} for p in array_poses(cfg, side=0.1)]
+    rep.facts["splits"] = {s: {"scenes": sp.count} for s, sp in cfg.splits.items()}
+    if out_dir:
+        _check_out_dir(cfg, out_dir, rep, space=False)  # the space needed is known once planned
+    with tempfile.TemporaryDirectory(prefix="tsel-check-") as scratch:
+        home = Layout(out_dir) if out_dir and os.path.isdir(Layout(out_dir).demo_recordings) else Layout(scratch)
+        try:
+            plans, summary = plan_recorded(cfg, recorded_corpus(cfg, home))
+        except TselError as e:
+            rep.error(e)
+            return rep
+    for split, s in summary.items():
+        rep.facts["splits"][split].update(planned=s["kept"], windows=s["windows"], recordings=s["recordings"],
+                                          skipped=s["skipped"])
+        for why, n in s["skipped"].items():
+            rep.warnings.append(f"split {split}: {n} of {s['candidates']} targets skipped: {why}")
+    if out_dir:
+        counted = replace(cfg, splits={k: replace(sp, count=len(plans.get(k, []))) for k, sp in cfg.splits.items()})
+        _check_space(counted, out_dir, rep, planned_with(Layout(out_dir), cfg))
+    return rep
+
+
+def _check_out_dir(cfg: Config, out_dir: str, rep: CheckReport, space: bool = True) -> None:
     base = os.path.abspath(out_dir)
     while not os.path.exists(base):
         base = os.path.dirname(base)
@@ -108,6 +137,14 @@ def _check_out_dir(cfg: Config, out_dir: str, rep: CheckReport) -> None:
     elif state == "same":
         rep.warnings.append(f"{out_dir} holds an unfinished run of this config; `tsel generate ... --resume` "
                             f"continues it")
+    if space:
+        _check_space(cfg, out_dir, rep, state)
+
+
+def _check_space(cfg: Config, out_dir: str, rep: CheckReport, state: str) -> None:
+    base = os.path.abspath(out_dir)
+    while not os.path.exists(base):
+        base = os.path.dirname(base)
     need = estimate_bytes(cfg)
     free = shutil.disk_usage(base).free
     rep.facts.update(estimated_bytes=need, free_bytes=free)

@@ -34,7 +34,8 @@ from ..corpus.audio import check_clip
 from ..errors import DatasetError, TselError
 from ..plan.catalog import BUILTIN_DEMO, resolve_corpus_dir
 from ..plan.sampler import bank_request
-from ..scene.recipe import SceneRecipe
+from ..plan.recorded import recorded_corpus
+from ..scene.recipe import BUILTIN_DEMO_RECORDED, RECORDED, SceneRecipe, corpus_files
 from ..store.layout import Layout
 from ..store.lock import DatasetLock
 from ..store.plans import has_plan, local_roots, plan_seal, read_plan_doc
@@ -87,7 +88,7 @@ def rebuild(release_dir: str, out_dir: str, corpus_dir: str | None = None, bank:
     with DatasetLock(layout, exclusive=True, what="rebuild it"):
         config = _config_here(rel, layout, corpus_dir, bank)
         cfg = parse_config(local_roots(config, layout.root), where=rel.path("plan/config.json"), stored=True)
-        corpus = resolve_corpus_dir(cfg, layout.demo_corpus)
+        corpus = recorded_corpus(cfg, layout) if cfg.recorded.on else resolve_corpus_dir(cfg, layout.demo_corpus)
         if cfg.room.bank:
             resolve_bank(bank_request(cfg), layout.demo_bank)  # builds the built-in one, checks any other
         clips = _clip_states(rel, corpus, cfg, progress)
@@ -113,7 +114,7 @@ def _config_here(rel: Release, layout: Layout, corpus_dir: str | None, bank: str
     corpus = (config.get("corpus") or {}).get("dir", "")
     if corpus_dir:
         config["corpus"]["dir"] = os.path.abspath(os.path.expanduser(corpus_dir))
-    elif corpus != BUILTIN_DEMO:
+    elif corpus not in (BUILTIN_DEMO, BUILTIN_DEMO_RECORDED):
         raise TselError(f"the release's clips come from a corpus of your own ({corpus or 'unnamed'}, as the "
                         f"dataset's maker had it): give --corpus-dir with your copy")
     room = config.get("room") or {}
@@ -138,11 +139,13 @@ def _clip_states(rel: Release, corpus: str, cfg, progress) -> ClipState:
     for name, entry in rel.clips().items():
         path = os.path.join(corpus, name)
         if not os.path.isfile(path):
-            state.missing[name] = f"clip {entry['clip_id']} ({name}) is missing"
+            state.missing[name] = f"{'file' if cfg.recorded.on else 'clip'} {entry['clip_id']} ({name}) is missing"
             continue
         if os.path.getsize(path) == entry.get("bytes") and sha256_file(path) == entry.get("sha256"):
             continue
         state.changed.add(name)
+        if cfg.recorded.on:  # a recording or its labels: the scenes' checksums tell what changed
+            continue
         check = check_clip(entry["clip_id"], path, "full", c.min_duration, c.max_channels)
         if check.problem:
             state.missing[name] = f"clip {entry['clip_id']} changed and is a bad clip now: {check.problem}"
@@ -159,14 +162,14 @@ def _plan(rel: Release, clips: ClipState, policy: str) -> tuple[dict, list]:
         lines = []
         for line in rel.recipe_lines(split):
             d = json.loads(line)
-            names = [s["audio"] for s in d["sources"]]
+            names = [name for name, _, _ in corpus_files(d)]
             gone = [n for n in names if n in clips.missing]
             if not gone:
                 lines.append(line)
                 outcomes.append(SceneOutcome(d["scene_id"], split, "", clips=names))
                 continue
             why = "; ".join(clips.missing[n] for n in gone)
-            if policy == MissingClipPolicy.SKIP:
+            if policy == MissingClipPolicy.SKIP or d.get("kind") == RECORDED:  # a recording has no stand-in
                 outcomes.append(SceneOutcome(d["scene_id"], split, "not-buildable", why, clips=names))
                 continue
             done = _substitute(d, gone, pool, entries)

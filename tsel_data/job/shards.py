@@ -19,7 +19,7 @@ from ..config import Config, parse_config
 from ..config.receiver import array_poses
 from ..core.atomic import write_json
 from ..errors import AudioError, BankError, DatasetError
-from ..render.mix import render_scene
+from ..render.scenes import render_recipe
 from ..runtime.runner import Runner
 from ..scene.recipe import Roots, SceneRecipe, plan_roots, recipe_from_line
 from ..store.dataset import ShardEntry, dataset_doc, shard_attrs
@@ -198,7 +198,7 @@ def render_shard(out_dir: str, task: ShardTask, recipes: list[SceneRecipe], attr
     fingerprint = expected_fingerprint(recipes, roots, content=content)
     with ShardWriter(out_dir, task.split, task.shard, len(recipes), attrs, fingerprint) as w:
         for r in recipes:  # one scene's audio in memory at a time
-            w.add(render_scene(r, roots))
+            w.add(render_recipe(r, roots))
     return len(recipes)
 
 
@@ -362,6 +362,8 @@ def finalize(plan: Plan | str, corpus_dir: str | None = None, bank: str | None =
         doc = dataset_doc(portable_roots(plan.cfg.to_dict(), out_dir), plan.cfg.seed, plan.attrs, entries)
         if "seal" in plan.doc:
             doc["plan_seal"] = plan.doc["seal"]
+        if "recorded" in plan.doc:  # what the windows held: kept, skipped and why (docs/recorded.md)
+            doc["recorded"] = plan.doc["recorded"]
         write_json(layout.dataset_file, doc)
         return doc
 

@@ -23,7 +23,7 @@ from ..corpus.audio import save_wav
 from ..errors import DatasetError
 from ..receivers.stereo import stereo_preview
 from ..render.mix import mix_parts
-from ..scene.recipe import Roots, SceneRecipe
+from ..scene.recipe import Roots, SceneRecipe, recipe_from_line
 from ..store.integrity import input_stats, missing_inputs
 from ..store.layout import Layout
 from ..store.plans import read_plan_lines
@@ -47,7 +47,10 @@ def scene_recipe(root: str, split: str, index: int, scene_id: str | None = None,
     if not 0 <= index < len(lines):
         raise DatasetError(f"{layout.plan_file(split)} has no recipe for {shown} (the plan is missing or "
                            f"shorter); the stems are rendered from the scene's recipe")
-    recipe = SceneRecipe.from_json(lines[index])
+    recipe = recipe_from_line(layout.plan_file(split), index + 1, lines[index])
+    if recipe.kind != "rendered":
+        raise DatasetError(f"{recipe.scene_id} is a recorded scene: its sources were recorded together and have no "
+                           f"stems")
     if scene_id is not None and recipe.scene_id != scene_id:
         raise DatasetError(f"{layout.plan_file(split)}: line {index + 1} is {recipe.scene_id}, not {scene_id}; the "
                            f"plan does not belong to these shards")

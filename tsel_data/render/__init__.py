@@ -5,5 +5,8 @@ but the recipe and the files it names.
 sources), levels and the mix, decides the query and builds the record; ``noise`` renders
 the diffuse noise beds a recipe asks for (spectral noise, babble, recorded ambience).
 
-Import order: ``noise``, then ``mix``.
+``recorded`` cuts a scene from a real recording instead (docs/recorded.md); ``scenes``
+renders any plan line by its kind.
+
+Import order: ``noise``, then ``mix``; ``recorded``; ``scenes`` uses both.
 """

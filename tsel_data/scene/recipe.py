@@ -268,6 +268,8 @@ class SceneRecipe:
     receivers: tuple[ArrayPose, ...] = ()
     noise: tuple[NoiseItem, ...] = ()
 
+    kind = "rendered"  # a plan line's kind (a recorded scene's recipe says "recorded")
+
     @property
     def target(self) -> Source:
         return self.sources[0]
@@ -363,6 +365,7 @@ class SceneRecipe:
 # roots a config may name instead of a path: the inputs tsel-data makes itself
 BUILTIN_DEMO = "builtin:demo"
 BUILTIN_DEMO_BANK = "builtin:demo-bank"
+BUILTIN_DEMO_RECORDED = "builtin:demo-recorded"  # the STARSS23 stand-in (corpus/demo/recordings.py)
 
 
 @dataclass(frozen=True)
@@ -428,7 +431,8 @@ def plan_roots(cfg, home) -> Roots:
     :class:`~tsel_data.store.layout.Layout`), a binaural receiver's HRTF and the ambience
     folder. ``cfg``: a :class:`~tsel_data.config.Config` (read, not imported: the render
     job needs the roots, not the config layer's sampler)."""
-    corpus = home.demo_corpus if cfg.corpus.dir == BUILTIN_DEMO else cfg.corpus.dir
+    corpus = {BUILTIN_DEMO: home.demo_corpus, BUILTIN_DEMO_RECORDED: home.demo_recordings}.get(cfg.corpus.dir,
+                                                                                           cfg.corpus.dir)
     bank = home.demo_bank if cfg.room.bank == BUILTIN_DEMO_BANK else cfg.room.bank
     return Roots(*(os.path.abspath(os.path.expanduser(p)) if p else ""
                    for p in (corpus, bank, cfg.array.hrtf, cfg.noise.ambience)))
@@ -461,6 +465,16 @@ def read_plan(path) -> list[SceneRecipe]:
     except OSError as e:
         raise DatasetError(f"{path}: cannot read the plan ({e.strerror or e}); plan again into a new --out") from None
     return out
+
+
+def corpus_files(d: dict) -> list[tuple[str, str, list]]:
+    """(file relative to the corpus, its id, its captions) of what a plan line (as plain
+    data) reads from the corpus, in source order: a rendered scene's clips, or a recorded
+    scene's recording and its label file (a recipe release lists and checks these)."""
+    if d.get("kind") == RECORDED:
+        stem = os.path.splitext(os.path.basename(d["audio"]))[0]
+        return [(d["audio"], stem, []), (d["metadata"], f"{stem} labels", [])]
+    return [(s["audio"], s["clip_id"], s["captions"]) for s in d["sources"]]
 
 
 def recipe_from_dict(d: dict):

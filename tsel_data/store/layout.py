@@ -24,6 +24,7 @@ CONFIG_FILE = f"{PLAN_DIR}/config.json"
 BAD_CLIPS_FILE = "bad_clips.jsonl"
 MISSING_CLIPS_FILE = "missing_clips.json"
 DEMO_CORPUS_DIR = "demo-corpus"
+DEMO_RECORDINGS_DIR = "demo-recordings"  # builtin:demo-recorded: the STARSS23 stand-in
 DEMO_BANK_FILE = "demo-bank.h5"
 LOCK_FILE = ".tsel.lock"
 SEAL_SUFFIX = ".seal.json"
@@ -75,6 +76,10 @@ class Layout:
     @property
     def demo_corpus(self) -> str:
         return self.path(DEMO_CORPUS_DIR)
+
+    @property
+    def demo_recordings(self) -> str:
+        return self.path(DEMO_RECORDINGS_DIR)
 
     @property
     def demo_bank(self) -> str:

@@ -164,12 +164,20 @@ def read_plan_doc(layout: Layout, remedy: tuple[str, str] = PLAN_AGAIN) -> dict:
 
 
 def stored_config(layout: Layout) -> dict | None:
-    """The config a folder was planned with (plain data, roots as paths here), or None
-    when it holds no readable plan."""
+    """The config a folder was planned with (plain data, roots as paths here), as it was
+    asked: a recorded plan's split counts are the caps asked (``recorded.asked``), not the
+    scenes planned. None when the folder holds no readable plan."""
     try:
-        return local_roots(read_plan_doc(layout)["config"], layout.root) if has_plan(layout) else None
+        doc = read_plan_doc(layout) if has_plan(layout) else None
     except DatasetError:
         return None
+    if doc is None:
+        return None
+    config = local_roots(doc["config"], layout.root)
+    for split, summary in (doc.get("recorded") or {}).items():
+        if isinstance(summary, dict) and split in (config.get("splits") or {}) and "asked" in summary:
+            config["splits"][split] = {**config["splits"][split], "count": summary["asked"]}
+    return config
 
 
 def read_split_plan(layout: Layout, split: str) -> list[SceneRecipe]:

@@ -243,6 +243,44 @@ class LevelsRecord(_JsonMapping):
 
 
 @dataclass(frozen=True)
+class RecordingRecord(_JsonMapping):
+    """Where a recorded scene comes from (docs/recorded.md): the ``dataset``, the recording
+    ``audio`` and its label file ``metadata`` (relative to the corpus folder) with their
+    ``sha256``, the window (``start`` s, ``start_frame`` and ``frames`` label frames), the
+    ``fold`` and ``room`` its name says, and per source (target first) its ``classes``
+    (names), ``class_indices``, ``actors`` (the CSV's source column) and ``events`` (the
+    ordinal among sources of one class and actor at once)."""
+
+    dataset: str
+    audio: str
+    metadata: str
+    sha256: str
+    metadata_sha256: str
+    start: float
+    start_frame: int
+    frames: int
+    fold: int | None = None
+    room: int | None = None
+    classes: list = field(default_factory=list)
+    class_indices: list = field(default_factory=list)
+    actors: list = field(default_factory=list)
+    events: list = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        return {"dataset": self.dataset, "audio": self.audio, "metadata": self.metadata, "sha256": self.sha256,
+                "metadata_sha256": self.metadata_sha256, "start": self.start, "start_frame": self.start_frame,
+                "frames": self.frames, "fold": self.fold, "room": self.room, "classes": list(self.classes),
+                "class_indices": list(self.class_indices), "actors": list(self.actors), "events": list(self.events)}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "RecordingRecord":
+        return cls(d.get("dataset", ""), d.get("audio", ""), d.get("metadata", ""), d.get("sha256", ""),
+                   d.get("metadata_sha256", ""), d.get("start", 0.0), d.get("start_frame", 0), d.get("frames", 0),
+                   d.get("fold"), d.get("room"), list(d.get("classes") or []), list(d.get("class_indices") or []),
+                   list(d.get("actors") or []), list(d.get("events") or []))
+
+
+@dataclass(frozen=True)
 class SceneRecord(_JsonMapping):
     """Everything known about one rendered scene (docs/format.md); source 0 is the target.
 
@@ -273,6 +311,11 @@ class SceneRecord(_JsonMapping):
     query_wanted: str | None = None
     receivers: tuple = ()  # ArrayRecords of further receivers heard in the same pass
     noise: tuple = ()  # NoiseRecords: what else the scene holds, unlabelled
+    recording: RecordingRecord | None = None  # a scene cut from a real recording (docs/recorded.md)
+
+    @property
+    def recorded(self) -> bool:
+        return self.recording is not None
 
     @property
     def target(self) -> SourceRecord:
@@ -307,6 +350,8 @@ class SceneRecord(_JsonMapping):
             d["receivers"] = [r.to_json() for r in self.receivers]
         if self.noise:  # only with [noise]
             d["noise"] = [n.to_json() for n in self.noise]
+        if self.recording is not None:  # recorded scenes only
+            d["recording"] = self.recording.to_json()
         return d
 
     @classmethod
@@ -322,4 +367,5 @@ class SceneRecord(_JsonMapping):
                    query_alternatives=d.get("query_alternatives"), pairing=d.get("pairing") or "random",
                    query_wanted=d.get("query_wanted"),
                    receivers=tuple(ArrayRecord.from_json(r) for r in d.get("receivers") or ()),
-                   noise=tuple(NoiseRecord.from_json(n) for n in d.get("noise") or ()))
+                   noise=tuple(NoiseRecord.from_json(n) for n in d.get("noise") or ()),
+                   recording=None if d.get("recording") is None else RecordingRecord.from_json(d["recording"]))

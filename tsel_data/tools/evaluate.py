@@ -40,6 +40,7 @@ import numpy as np
 from ..core.geometry import azimuth_difference, circular_mean
 from ..errors import DatasetError, PredictionError
 from ..store.reader import open_dataset
+from .blind import CLOSE_DEG, blind_predictions
 from .labels import decode_distribution
 
 THRESHOLDS = (5.0, 10.0, 20.0)
@@ -74,6 +75,9 @@ class EvalResult:
     by_relation: dict = field(default_factory=dict)
     by_pairing: dict = field(default_factory=dict)
     by_snr: dict = field(default_factory=dict)  # only for datasets with [noise]
+    blind: dict = field(default_factory=dict)  # answers made without listening (tools/blind.py)
+    blind_flag: str = ""  # set when one of them scores close to the predictions
+
 
     def to_dict(self, per_scene: bool = True) -> dict:
         d = {"split": self.split, "overall": self.overall, "by_scenario": self.by_scenario,
@@ -81,6 +85,9 @@ class EvalResult:
              "by_pairing": self.by_pairing}
         if self.by_snr:
             d["by_snr"] = self.by_snr
+        if self.blind:
+            d["blind"] = self.blind
+            d["blind_flag"] = self.blind_flag
         if per_scene:
             d["per_scene"] = self.per_scene
         return d
@@ -99,6 +106,12 @@ class EvalResult:
                               ("relation", self.by_relation), ("pairing", self.by_pairing), ("snr", self.by_snr)):
             for name, r in groups.items():
                 lines.append(row(f"{title}={name}", r))
+        if self.blind:
+            lines.append("blind answers, from the train split's labels and the query (no audio):")
+            for name, r in self.blind.items():
+                lines.append(row(f"blind={name}", r))
+        if self.blind_flag:
+            lines.append(self.blind_flag)
         return "\n".join(lines)
 
 
@@ -258,9 +271,14 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
                           "error": float(err.mean()) if err.size else float("nan")})
     if not all_err:
         raise DatasetError(f"{root}: split {split!r} has no scenes")
+    overall = summarise(all_err)
+    blind = {name: summarise([scene_errors(Prediction(s.scene_id, np.float64(answer[s.scene_id])),
+                                           s.azimuth[0].astype(np.float64), s.active[0], s.target_moving)
+                              for s in scenes])
+             for name, answer in blind_predictions(root, split).items()}
     return EvalResult(
         split=split,
-        overall=summarise(all_err),
+        overall=overall,
         by_scenario={k: summarise(v) for k, v in sorted(groups_sc.items())},
         by_motion={k: summarise(v) for k, v in sorted(groups_mo.items())},
         per_scene=per_scene,
@@ -268,7 +286,19 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
         by_relation={k: summarise(v) for k, v in sorted(groups_rel.items())},
         by_pairing={k: summarise(v) for k, v in sorted(groups_pair.items())},
         by_snr={k: summarise(groups_snr[k]) for k in SNR_GROUPS if k in groups_snr},
+        blind=blind, blind_flag=blind_flag(split, overall, blind),
     )
+
+
+def blind_flag(split: str, overall: dict, blind: dict) -> str:
+    """One line when a blind answer scores within CLOSE_DEG of the predictions' MAE."""
+    if not blind:
+        return ""
+    name, best = min(blind.items(), key=lambda kv: kv[1]["mae"])
+    if not best["mae"] <= overall["mae"] + CLOSE_DEG:
+        return ""
+    return (f"warning: split {split}: answering blind ({name}) scores {best['mae']:.1f} deg against the predictions' "
+            f"{overall['mae']:.1f} deg: this split rewards what a model can learn without listening")
 
 
 SNR_GROUPS = ("<10dB", "10-20dB", "20-30dB", ">=30dB", "dbfs-only")

@@ -60,6 +60,13 @@ def summary(scene: Scene) -> str:
     lines = [f"scene {scene.scene_id}  (split {scene.split}, index {scene.index}, seed {rec.seed})",
              f"query: {scene.query!r}"] + query_lines(rec)
     lines.append(f"scenario: {rec.scenario}   motion: {rec.motion}   rir: {rec.rir_method}")
+    if rec.recording is not None:
+        r = rec.recording
+        lines.append(f"recorded: {r.dataset} {r.audio}, {r.start:g}-{r.start + r.frames * scene.label_hop:g} s "
+                     f"(label frames {r.start_frame}-{r.start_frame + r.frames - 1} of {r.metadata}), fold "
+                     f"{r.fold}, room {r.room}")
+        lines.append("classes: " + "; ".join(f"[{k}] {c} (source {a})"
+                                             for k, (c, a) in enumerate(zip(r.classes, r.actors))))
     room = room_text(rec)
     if room:
         lines.append(f"room: {room}")

@@ -155,6 +155,8 @@ def draw_array_view(ax, scene, small: bool = False) -> None:
     far, seen = 1.0, []
     for s in _source_order(scene):
         az, dist = scene.azimuth[s].astype(np.float64), scene.distance[s].astype(np.float64)
+        if not np.isfinite(dist).any():  # a direction without a distance (a recording's 5 columns): the 1 m ring
+            dist = np.ones_like(dist)
         ok = np.isfinite(az) & np.isfinite(dist)
         if not ok.any():
             continue

@@ -21,8 +21,9 @@ import numpy as np
 from ..core.atomic import atomic_output
 from ..core.geometry import azimuth_difference, circular_mean
 from ..core.report import band_limited_text
-from ..errors import TselError
+from ..errors import DatasetError, TselError
 from ..store.layout import Layout
+from ..store.dataset import load_dataset_doc
 from ..store.plans import local_roots, read_plan_doc
 from ..store.reader import list_splits, open_dataset
 from .evaluate import scene_snr
@@ -72,6 +73,7 @@ class SplitTally:
         self.target_audio: dict[str, str] = {}
         self.scenarios, self.motions = Counter(), Counter()
         self.queries = QueryMix()
+        self.target_classes = Counter()  # recorded scenes: the class the labels name
 
     def add(self, sc) -> None:
         raw, rec = self.raw, sc.record
@@ -80,6 +82,8 @@ class SplitTally:
         self.scenarios[rec.scenario] += 1
         self.motions[rec.motion] += 1
         self.moving += any(s.moving for s in rec.sources) or rec.motion == "moving"
+        if rec.recording is not None and rec.recording.classes:
+            self.target_classes[rec.recording.classes[0]] += 1
         for k, s in enumerate(rec.sources):
             if s.clip_id is not None:
                 self.clip_uses[s.clip_id] += 1
@@ -156,8 +160,20 @@ class SplitTally:
             "moving_sources": {"scenes": dict(Counter(raw["moves"])), "speed_deg_s": _summ(raw["speed"])},
             "target_elevation_deg": _summ(raw["target_el"]),
             "queries": self.queries.result(),
+            **self._recorded(),
             "raw": raw,
         }
+
+    def _recorded(self) -> dict:
+        """{"recorded": ...} of a recorded dataset's split: what its windows held, what
+        was kept, skipped and why (dataset.json), and the target classes; else {}."""
+        if not self.target_classes:
+            return {}
+        try:
+            planned = (load_dataset_doc(self.root).raw.get("recorded") or {}).get(self.split) or {}
+        except DatasetError:
+            planned = {}
+        return {"recorded": {**planned, "target_classes": dict(self.target_classes.most_common())}}
 
 
 def angular_speed(az, el, hop: float) -> float | None:
@@ -291,7 +307,21 @@ def format_text(stats: dict) -> str:
         out.append(_line("moving source speed (deg/s)", s["moving_sources"]["speed_deg_s"], fmt=".1f"))
         out.append(_line("query length (words)", s["query_words"], fmt=".0f"))
         out += _query_lines(s["queries"])
+        out += _recorded_lines(s.get("recorded"))
     return "\n".join(out)
+
+
+def _recorded_lines(r: dict | None) -> list[str]:
+    if not r:
+        return []
+    out = []
+    if "windows" in r:
+        skipped = r.get("skipped") or {}
+        out.append(f"  recorded: {r['kept']} scenes kept of {r['candidates']} targets in {r['windows']} windows of "
+                   f"{r['recordings']} recordings; {r['too_short']} sources active less than recorded.min_active")
+        out += [f"  skipped {n}: {why}" for why, n in skipped.items()] or ["  skipped: none"]
+    out.append("  target classes: " + ", ".join(f"{k} {v}" for k, v in r["target_classes"].items()))
+    return out
 
 
 def plot_stats(stats: dict, path: str, dpi: int = 100) -> str:
