@@ -5,6 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
 DEMO_MOVING_OUT ?= demo-moving-out
+DEMO_RECORDED_OUT ?= demo-recorded-out
 # pictures and audio of the demo dataset: beside it, never inside (docs/reliability.md)
 DEMO_VIEWS ?= demo-views
 
@@ -23,7 +24,8 @@ $(STAMP): pyproject.toml
 
 # Build the demo dataset from the built-in synthetic corpus (no downloads), then summarise it,
 # draw one scene and check its labels against the audio. Then the same corpus with moving
-# sources from a small simulated RIR bank (FOA, rooms split by split).
+# sources from a small simulated RIR bank (FOA, rooms split by split), and scenes cut from
+# recordings in STARSS23's layout (a synthetic stand-in).
 demo: $(STAMP)
 	$(BIN)/tsel generate --preset demo --out $(DEMO_OUT) --resume
 	mkdir -p $(DEMO_VIEWS)
@@ -32,8 +34,10 @@ demo: $(STAMP)
 	$(BIN)/tsel verify $(DEMO_OUT)
 	$(BIN)/tsel generate --preset demo-moving --out $(DEMO_MOVING_OUT) --resume
 	$(BIN)/tsel bank info $(DEMO_MOVING_OUT)/demo-bank.h5
+	$(BIN)/tsel generate --preset demo-recorded --out $(DEMO_RECORDED_OUT) --resume
 	@echo "demo dataset in $(DEMO_OUT)/ (dataset.json); pictures and audio in $(DEMO_VIEWS)/ (stats.png, test-000000.png, test-000000.wav)"
 	@echo "moving-source demo dataset in $(DEMO_MOVING_OUT)/"
+	@echo "scenes cut from recordings in STARSS23's layout (a synthetic stand-in) in $(DEMO_RECORDED_OUT)/ (docs/recorded.md)"
 
 # Two processes, one per core of the machines we test on. Generated datasets are built once
 # per run whichever worker asks, and a module with module-scoped fixtures runs on one worker
@@ -64,4 +68,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_scaling.py
 
 clean:
-	rm -rf $(DEMO_OUT) $(DEMO_MOVING_OUT) $(DEMO_VIEWS) $(BASELINE_OUT) .pytest_cache
+	rm -rf $(DEMO_OUT) $(DEMO_MOVING_OUT) $(DEMO_RECORDED_OUT) $(DEMO_VIEWS) $(BASELINE_OUT) .pytest_cache

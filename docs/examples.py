@@ -64,6 +64,7 @@ GROUPS = {
     "read": ("dataset", ["commands/check.md", "commands/inspect.md", "commands/stats.md", "reader.md", "format.md"]),
     "verify": ("dataset", ["commands/verify.md", "baseline.md"]),
     "export": ("dataset", ["commands/export.md", "commands/eval.md"]),
+    "recorded": ("corpus", ["recorded.md"]),
 }
 PAGES = [page for _, pages in GROUPS.values() for page in pages]
 # the example every sandbox starts from: generate.md's first, the demo dataset others read

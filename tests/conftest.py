@@ -55,6 +55,19 @@ def demo_corpus(shared_dir):
     return str(built_once(shared_dir / "demo-corpus", lambda d: synth_corpus(str(d), seed=0)))
 
 
+def _recordings(shared_dir: Path) -> str:
+    from tsel_data.corpus.demo.recordings import synth_recordings
+
+    return str(built_once(shared_dir / "demo-recordings", lambda d: synth_recordings(str(d), seed=0)))
+
+
+@pytest.fixture(scope="session")
+def demo_recordings(shared_dir):
+    """The stand-in for STARSS23 in its exact layout (corpus/demo/recordings.py), made once
+    per test run. Read it, never change it."""
+    return _recordings(shared_dir)
+
+
 @dataclass(frozen=True)
 class Generated:
     cfg: object  # the Config it was generated with
@@ -76,7 +89,8 @@ def generated_dataset(shared_dir, demo_corpus):
     home = shared_dir / "generated" if os.environ.get("PYTEST_XDIST_WORKER") else shared_dir
 
     def make(name: str) -> Generated:
-        cfg = DATASETS[name].load(demo_corpus)
+        spec = DATASETS[name]
+        cfg = spec.load(_recordings(shared_dir) if spec.corpus == "recordings" else demo_corpus)
         folder = built_once(home / (name if home != shared_dir else f"generated-{name}"),
                             lambda d: generate(cfg, str(d / "ds"), workers=1, progress=False))
         return Generated(cfg, str(folder / "ds"))

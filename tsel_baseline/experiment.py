@@ -2,6 +2,10 @@
 
     python -m tsel_baseline.experiment --out baseline-out
 
+With ``--recorded-test DIR`` (a recorded dataset, docs/recorded.md, e.g. STARSS23's
+``tsel generate --preset starss23``), the model of the moving row (FOA, frame-level, trained
+only on simulated scenes) also predicts that dataset's test split: the row "real rooms".
+
 Steps (each skipped when its output is already there, so a re-run only redoes what is
 missing): a synthetic captioned corpus (``tsel corpus synth``), three datasets made with
 ``tsel generate`` from the paper's presets (scaled down, see ``DATASETS``), features once
@@ -198,6 +202,8 @@ def train_row(job: dict) -> list[dict]:
         preds = predict(m, tables["val"], text)
         return score(preds, root, "val", os.path.join(out, "predictions", f"{tag}-val.jsonl")).overall["mae"]
 
+    recorded = job.get("recorded")  # a recorded test set this row's model also predicts
+
     log(f"== {setting.label}")
     model, history = fit(ModelConfig(inputs=setting.inputs, output=setting.output, fusion=setting.fusion,
                                      pool_frames=2 if setting.fusion == "concat" and setting.output == "clip" else 1),
@@ -220,11 +226,38 @@ def train_row(job: dict) -> list[dict]:
             json.dump(row, f, indent=1)
         log(f"   {s.label}: test MAE {row['mae']:.2f}°, acc@10 {100 * row['acc10']:.1f}%  ({row['seconds']:.0f} s)")
         rows.append(row)
+    if recorded:
+        rows.append(recorded_row(model, text, setting, recorded, out, job["text"], log))
     return rows
 
 
+def recorded_label(root: str) -> str:
+    return f"real rooms: the moving row's model (trained on simulated FOA scenes only) on {os.path.basename(root)}"
+
+
+def recorded_row(model, text, setting: Setting, recorded: dict, out: str, text_name: str, log) -> dict:
+    """Predict and score a recorded dataset's test split with a model trained on rendered
+    scenes; the row keeps the blind answers' scores beside it (tsel_data.tools.blind)."""
+    table = FeatureTable.load(recorded["table"])
+    path = os.path.join(out, "predictions", f"recorded-{setting.tag}-test.jsonl")
+    result = score(predict(model, table, text), recorded["root"], recorded["split"], path)
+    label = recorded_label(recorded["root"])
+    row = {"setting": label, "dataset": "recorded", "model": setting.fusion, "inputs": list(setting.inputs),
+           "output": setting.output, "text": text_name, "mae": result.overall["mae"],
+           "acc10": result.overall["acc10"], "acc5": result.overall["acc5"], "acc20": result.overall["acc20"],
+           "units": result.overall["units"], "predictions": path, "recorded": recorded["root"],
+           "blind": {k: v["mae"] for k, v in result.blind.items()}, "blind_flag": result.blind_flag,
+           "per_scene": result.per_scene}
+    with open(os.path.join(out, "rows", f"recorded-{setting.tag}.json"), "w") as f:
+        json.dump(row, f, indent=1)
+    log(f"   {label}: test MAE {row['mae']:.2f}°, acc@10 {100 * row['acc10']:.1f}%"
+        + (f"; {result.blind_flag}" if result.blind_flag else ""))
+    return row
+
+
 def run(out: str, text_name: str = "bow", text_npz: str | None = None, workers: int = 2, seed: int = 0,
-        only: list[str] | None = None, model: str = "select", jobs: int = 2, log=None) -> list[dict]:
+        only: list[str] | None = None, model: str = "select", jobs: int = 2, log=None,
+        recorded_test: str | None = None, recorded_split: str = "test") -> list[dict]:
     log = log or (lambda msg: print(msg, flush=True))
     t_start = time.time()
     cores = set_threads(0)
@@ -251,6 +284,15 @@ def run(out: str, text_name: str = "bow", text_npz: str | None = None, workers: 
             path = os.path.join(out, "features", f"{name}-{fcfg.spatial}-{split}.npz")
             precompute(tsel_data.open_dataset(roots[name], split), fcfg, workers=workers, cache=path, log=log)
             paths[name, split] = path
+    recorded = None
+    if recorded_test:
+        if "moving" not in needed:
+            raise SystemExit("--recorded-test scores the moving row's model (FOA): run it with that row")
+        fcfg = feature_config(settings, "moving")
+        path = os.path.join(out, "features", f"recorded-{os.path.basename(os.path.normpath(recorded_test))}-"
+                                             f"{fcfg.spatial}-{recorded_split}.npz")
+        precompute(tsel_data.open_dataset(recorded_test, recorded_split), fcfg, workers=workers, cache=path, log=log)
+        recorded = {"root": recorded_test, "split": recorded_split, "table": path}
     timings["features"] = time.time() - t
     log(f"features ready ({timings['features']:.0f} s)")
 
@@ -262,7 +304,8 @@ def run(out: str, text_name: str = "bow", text_npz: str | None = None, workers: 
     trained.sort(key=lambda s: -s.epochs * DATASETS[s.dataset].splits["train"] * (3 if s.output == "frame" else 1))
     todo = [{"setting": s, "controls": [c for c in settings if c.control_of == s.label], "out": out,
              "root": roots[s.dataset], "tables": {sp: paths[s.dataset, sp] for sp in ("train", "val", "test")},
-             "text": text_name, "text_npz": text_npz, "seed": seed, "threads": max(1, cores // jobs)}
+             "text": text_name, "text_npz": text_npz, "seed": seed, "threads": max(1, cores // jobs),
+             "recorded": recorded if s.dataset == "moving" and s.output == "frame" else None}
             for s in trained]
     if jobs == 1:
         rows = [r for job in todo for r in train_row(dict(job, log=log))]
@@ -277,7 +320,9 @@ def run(out: str, text_name: str = "bow", text_npz: str | None = None, workers: 
         with open(os.path.join(out, "rows", fn)) as f:
             r = json.load(f)
         done[r["setting"]] = r
-    table = format_table([done[s.label] for s in all_settings if s.label in done])
+    shown = [done[s.label] for s in all_settings if s.label in done]
+    shown += [r for label, r in done.items() if r.get("dataset") == "recorded"]
+    table = format_table(shown)
     log("\n" + table + f"\n\nwall time {timings['total'] / 60:.1f} min (data {timings['data']:.0f} s, "
         f"features {timings['features']:.0f} s, training {timings['training']:.0f} s)")
     suffix = ("" if model == "select" else f"-{model}") + ("" if not only else "-" + "-".join(only))
@@ -307,8 +352,16 @@ def main(argv=None) -> None:
     ap.add_argument("--model", default="select", choices=list(MODELS),
                     help="select: SelectNet (the table of docs/baseline.md); paper: the paper's concat model")
     ap.add_argument("--jobs", type=int, default=2, help="models trained at once (one process each)")
+    ap.add_argument("--recorded-test", metavar="DIR",
+                    help="a recorded FOA dataset (docs/recorded.md): the moving row's model also predicts its test "
+                         "split (the row \"real rooms\")")
+    ap.add_argument("--recorded-split", default="test", help="the split of --recorded-test to score")
     a = ap.parse_args(argv)
-    run(a.out, a.text, a.text_npz, a.workers, a.seed, a.only, a.model, a.jobs)
+    if a.recorded_test and not os.path.isfile(os.path.join(a.recorded_test, "dataset.json")):
+        ap.error(f"--recorded-test {a.recorded_test}: not a finished tsel-data dataset (tsel generate --preset "
+                 f"starss23 --corpus-dir YOUR_STARSS23 --out DIR makes one)")
+    run(a.out, a.text, a.text_npz, a.workers, a.seed, a.only, a.model, a.jobs, recorded_test=a.recorded_test,
+        recorded_split=a.recorded_split)
 
 
 if __name__ == "__main__":

@@ -334,3 +334,46 @@ def test_experiment_rows_read_the_features_made_for_them():
             assert set(s.inputs) - {"mel"} <= set(spatial)
     assert feature_config(MODELS["select"], "2dir").spatial == "xspec"
     assert feature_config(MODELS["paper"], "2dir").spatial == "gcc"
+
+
+def test_a_model_trained_on_rendered_foa_scenes_scores_a_recorded_test_set(demo_corpus, generated_dataset, tmp_path):
+    """--recorded-test: the moving row's kind of model (FOA intensity vectors + log-mel, a
+    frame head), trained on simulated scenes only, predicts a recorded dataset's test
+    split, scored with the blind answers beside it (docs/baseline.md, "Real rooms")."""
+    import tsel_data
+    from tsel_baseline.experiment import Setting, recorded_row, text_for
+    from tsel_data.cli import main
+
+    sim = str(tmp_path / "sim")
+    with pytest.raises(SystemExit) as e:
+        main(["generate", "--preset", "demo", "--corpus-dir", demo_corpus, "--out", sim, "--split", "train=6",
+              "--split", "val=0", "--split", "test=0", "--set", 'scene.format="foa"', "--set", "audio.duration=3.0",
+              "--set", 'scene.scenario="two-directional"', "--workers", "1", "--quiet"])
+    assert e.value.code == 0
+    recorded = generated_dataset("recorded").out
+    fcfg = FeatureConfig(spatial="iv")
+    train = precompute(tsel_data.open_dataset(sim, "train"), fcfg, workers=0, log=None)
+    table = str(tmp_path / "recorded-test.npz")
+    precompute(tsel_data.open_dataset(recorded, "test"), fcfg, workers=0, cache=table, log=None)
+    text = text_for(train, "bow")
+    model, _ = fit(ModelConfig(inputs=("iv", "mel"), output="frame", hidden=16, text_dim=8),
+                   TrainConfig(epochs=1, batch_size=4, threads=1), train, text, log=None)
+    for d in ("predictions", "rows"):
+        (tmp_path / "out" / d).mkdir(parents=True)
+    setting = Setting("moving", "moving", ("iv", "mel"), output="frame")
+    row = recorded_row(model, text, setting, {"root": recorded, "split": "test", "table": table},
+                       str(tmp_path / "out"), "bow", log=lambda m: None)
+    n = len(tsel_data.open_dataset(recorded, "test"))
+    lines = [json.loads(x) for x in open(row["predictions"])]
+    assert len(lines) == n and all(len(x["azimuth"]) == 100 for x in lines)  # a frame head: every frame
+    assert 0 <= row["mae"] <= 180 and row["units"] == n
+    assert set(row["blind"]) == {"train mean", "train mean per query", "train mean per class", "an interferer"}
+    assert json.load(open(tmp_path / "out" / "rows" / f"recorded-{setting.tag}.json"))["mae"] == row["mae"]
+
+
+def test_the_experiment_refuses_a_recorded_test_that_is_not_a_dataset(tmp_path, capsys):
+    from tsel_baseline.experiment import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["--out", str(tmp_path / "o"), "--recorded-test", str(tmp_path)])
+    assert e.value.code == 2 and "not a finished tsel-data dataset" in capsys.readouterr().err

@@ -16,6 +16,7 @@ class DatasetConfig:
     preset: str = "demo"
     splits: dict = field(default_factory=lambda: {"train": 6, "val": 2, "test": 2})
     overrides: tuple = ()
+    corpus: str = "demo"  # or "recordings": the STARSS23 stand-in (the demo_recordings fixture)
 
     def load(self, corpus_dir: str):
         from tsel_data.config import load_config
@@ -61,6 +62,8 @@ DATASETS = {
     "signals": DatasetConfig(splits={"train": 10, "val": 0, "test": 0},
                              overrides=("audio.duration=3.0", "output.shard_size=2", 'room.rir_method="ism"',
                                         'room.rt60=["uniform", 0.9, 1.0]')),
+    # STARSS23's layout, recorded scenes of every window (e2e/test_recorded)
+    "recorded": DatasetConfig(preset="starss23", splits={"train": 1000, "test": 1000}, corpus="recordings"),
     # each audio coding (store/test_store)
     **{f"coded-{c}": DatasetConfig(splits={"train": 3, "val": 0, "test": 0},
                                    overrides=("audio.duration=1.0", "output.shard_size=2", f'output.audio="{c}"'))

@@ -42,7 +42,7 @@ def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides,
     click.echo(f"dataset {cfg.name} in {out_dir}: " + ", ".join(f"{k} {v}" for k, v in s["splits"].items())
                + f" scenes ({total} total)")
     click.echo(f"  plan {s['plan_seconds']:.1f} s, render {s['render_seconds']:.1f} s ({rate:.2f} scenes/s), "
-               f"{s['bytes'] / 1e6:.1f} MB on disk, {s['bad_clips']} bad clips skipped"
+               f"{s['bytes'] / 1e6:.1f} MB on disk" + ("" if cfg.recorded.on else f", {s['bad_clips']} bad clips skipped")
                + (" (see bad_clips.jsonl)" if s["bad_clips"] else "")
                + (f", {s['missing_clips']} clips missing (see missing_clips.json)" if s["missing_clips"] else ""))
 

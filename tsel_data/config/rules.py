@@ -19,7 +19,7 @@ import re
 from dataclasses import fields
 
 from ..acoustics.metrics import sabine_min_rt60
-from ..choices import LevelModel, Pairing, QueryType, Relation, SimilarityMeasure, values
+from ..choices import LevelModel, Pairing, QueryType, RecordedSet, Relation, SimilarityMeasure, values
 from ..errors import ConfigError, GeometryError
 from ..receivers import canonical, receiver
 from ..scene.distributions import Dist
@@ -279,7 +279,7 @@ def _recorded_problems(cfg: Config, where: str) -> list[ConfigError]:
         out.append(ConfigError(f"{at(where, 'recorded.columns')}: columns are named from "
                                f"{', '.join(RECORDED_COLUMNS)} and include frame and class"
                                + (f"; {bad[0]!r} is not one" if bad else "")))
-    if rec.dataset == "custom" and not rec.ontology:
+    if rec.dataset == RecordedSet.CUSTOM and not rec.ontology:
         out.append(ConfigError(f"{at(where, 'recorded.ontology')}: recorded.dataset = \"custom\" needs your "
                                f"classes: recorded.ontology = FILE (docs/recorded.md)"))
     return out

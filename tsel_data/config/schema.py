@@ -335,8 +335,8 @@ class RecordedConfig:
                              "overlap", unit="s", ge=0.0, new=True)
     min_active: float = option(1.0, "a source becomes a target when it is active at least this long in the window",
                                unit="s", gt=0.0, new=True)
-    ontology: str = option("", "a file of your classes and their captions (CSV `index,name,captions` with captions "
-                               "joined by `|`, or JSON); empty: the dataset's built-in classes", path=True, new=True)
+    ontology: str = option("", "a file of your classes and their captions (CSV `index,name,captions` with the captions "
+                               "joined by a vertical bar, or JSON); empty: the dataset's built-in classes", path=True, new=True)
     columns: tuple = option((), "the label CSV's columns, when they are not the set's own: names from `frame`, "
                                 "`class`, `source`, `azimuth`, `elevation`, `distance` (cm), `ignore`, e.g. "
                                 "`[\"frame\", \"class\", \"source\", \"azimuth\", \"elevation\"]`", new=True)

@@ -16,7 +16,8 @@ FRAME_HOP = 0.1  # the DCASE label resolution, s
 
 
 def dcase_rows(scene, frame_hop: float = FRAME_HOP) -> list[tuple[int, int, int, int, int, int]]:
-    """DCASE label rows of one scene, sorted by frame then class then source.
+    """DCASE label rows of one scene, sorted by frame then class then source; five
+    numbers for a source without a distance, else six.
 
     Our label frames must already be ``frame_hop`` long (the DCASE 100 ms resolution).
     """
@@ -35,10 +36,15 @@ def dcase_rows(scene, frame_hop: float = FRAME_HOP) -> list[tuple[int, int, int,
         frames = np.flatnonzero(scene.active[s] & np.isfinite(az))
         az_i = _round_half_up(az[frames])
         az_i = np.where(az_i >= 180, az_i - 360, az_i)  # 179.6 rounds to 180 == -180
-        el_i = _round_half_up(scene.elevation[s][frames])
-        d_cm = _round_half_up(100.0 * scene.distance[s][frames])
-        rows.extend(zip(frames.tolist(), [cls] * len(frames), [src_idx] * len(frames), az_i.tolist(),
-                        el_i.tolist(), d_cm.tolist()))
+        el_i = _round_half_up(np.nan_to_num(scene.elevation[s][frames]))  # azimuth-only labels: the horizon
+        dist = scene.distance[s][frames]
+        if np.isfinite(dist).all():
+            d_cm = _round_half_up(100.0 * dist)
+            rows.extend(zip(frames.tolist(), [cls] * len(frames), [src_idx] * len(frames), az_i.tolist(),
+                            el_i.tolist(), d_cm.tolist()))
+        else:  # no distance (a recording labelled in five columns): the DCASE 2023 row
+            rows.extend(zip(frames.tolist(), [cls] * len(frames), [src_idx] * len(frames), az_i.tolist(),
+                            el_i.tolist()))
     rows.sort()
     return rows
 

@@ -90,8 +90,11 @@ def summary(scene: Scene) -> str:
         if np.isfinite(az).any():
             ok = np.isfinite(az)
             a0, a1 = az[ok][0], az[ok][-1]
+            el, dist = scene.elevation[s], scene.distance[s]
+            el_text = f"{np.nanmean(el):5.1f} deg" if np.isfinite(el).any() else "    - (not labelled)"
+            dist_text = f"{np.nanmean(dist):.2f} m" if np.isfinite(dist).any() else "- (not labelled)"
             pos = (f"az {a0:7.1f}" + (f" -> {a1:.1f}" if abs(a1 - a0) > 0.05 else "") +
-                   f" deg  el {np.nanmean(scene.elevation[s]):5.1f} deg  dist {np.nanmean(scene.distance[s]):.2f} m")
+                   f" deg  el {el_text}  dist {dist_text}")
         else:
             pos = "no position (additive)"
         extra = []

@@ -96,9 +96,9 @@ def synth_recordings(out_dir, seed: int = 0, seconds: float | None = None) -> di
         events = tuple(Event(e.cls, e.source, e.on, min(e.off, frames), e.az, e.el, e.dist) for e in events)
         name = f"fold{fold}_room{room}_mix{mix:03d}"
         signals = [_signal(rng, e, frames) for e in events]
-        for fmt in ("foa", "mic"):
-            audio = _diffuse(rng, frames, fmt) + sum(_encode(s, e, fmt) for s, e in zip(signals, events))
-            rel = os.path.join(f"{fmt}_dev", folder, f"{name}.wav")
+        for top in ENCODERS:
+            audio = _diffuse(rng, frames) + sum(_encode(s, e, top) for s, e in zip(signals, events))
+            rel = os.path.join(top, folder, f"{name}.wav")
             os.makedirs(os.path.join(out_dir, os.path.dirname(rel)), exist_ok=True)
             sf.write(os.path.join(out_dir, rel), audio.T.astype(np.float32), FS, subtype="PCM_16")
             out["recordings"].append(rel.replace(os.sep, "/"))
@@ -126,12 +126,13 @@ def _signal(rng: np.random.Generator, e: Event, frames: int) -> np.ndarray:
     return x
 
 
-def _encode(s: np.ndarray, e: Event, fmt: str) -> np.ndarray:
-    """A plane wave of ``s`` from the event's direction at each sample, [4, T]."""
-    az, el = e.direction(np.arange(len(s)) / (HOP * FS))
-    u = sph_to_cart(az, el, 1.0)  # [T, 3]
-    if fmt == "foa":
-        return np.stack([s, s * u[:, 1], s * u[:, 2], s * u[:, 0]])
+def _foa(s: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """ACN/SN3D of a plane wave from unit directions ``u`` [T, 3]: W, Y, Z, X."""
+    return np.stack([s, s * u[:, 1], s * u[:, 2], s * u[:, 0]])
+
+
+def _mic(s: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """The tetrahedral capsules as free-field omnis: each hears the wave when it passes."""
     out = np.empty((4, len(s)))
     t = np.arange(len(s), dtype=np.float64)
     for c, p in enumerate(tetra_positions()):
@@ -140,7 +141,16 @@ def _encode(s: np.ndarray, e: Event, fmt: str) -> np.ndarray:
     return out
 
 
-def _diffuse(rng: np.random.Generator, frames: int, fmt: str) -> np.ndarray:
+ENCODERS = {"foa_dev": _foa, "mic_dev": _mic}  # the DCASE layout's audio folders
+
+
+def _encode(s: np.ndarray, e: Event, folder: str) -> np.ndarray:
+    """A plane wave of ``s`` from the event's direction at each sample, [4, T]."""
+    az, el = e.direction(np.arange(len(s)) / (HOP * FS))
+    return ENCODERS[folder](s, sph_to_cart(az, el, 1.0))
+
+
+def _diffuse(rng: np.random.Generator, frames: int) -> np.ndarray:
     """A faint uncorrelated floor (-70 dBFS), so no channel is digital silence."""
     return 3e-4 * rng.standard_normal((4, frames * int(HOP * FS)))
 
