@@ -169,3 +169,23 @@ def test_every_built_in_class_has_several_wordings_and_no_wording_serves_two_cla
         assert len(words) == len(set(words)), s.name
     assert len(SETS[RecordedSet.STARSS23].ontology) == 13 and len(SETS[RecordedSet.TAU_NIGENS_2020].ontology) == 14
     assert len(SETS[RecordedSet.TAU_NIGENS_2021].ontology) == 12
+
+
+def test_copies_as_people_make_them_are_read(tmp_path, demo_recordings):
+    """A macOS copy's ``._NAME.wav``, a FIFO, a label file saved with a byte-order mark and
+    CRLF line ends, a linked folder: what a copy of STARSS23 can hold besides the data."""
+    root = tmp_path / "starss"
+    shutil.copytree(demo_recordings, root)
+    test = root / "foa_dev" / "dev-test-sony"
+    (test / "._fold4_room3_mix003.wav").write_bytes(b"\0\5\x16\7")
+    os.mkfifo(test / "fold9_room9_mix999.wav")
+    meta = root / "metadata_dev" / "dev-test-sony" / "fold4_room3_mix003.csv"
+    meta.write_bytes(b"\xef\xbb\xbf" + meta.read_bytes().replace(b"\n", b"\r\n"))
+    linked = tmp_path / "elsewhere"
+    shutil.move(str(root / "foa_dev" / "dev-train-sony"), linked)
+    os.symlink(linked, root / "foa_dev" / "dev-train-sony")
+    recs = find_recordings(str(root), "foa")
+    assert [r.audio.split("/")[-1] for r in recs] == ["fold4_room3_mix003.wav", "fold4_room4_mix004.wav",
+                                                     "fold3_room1_mix001.wav", "fold3_room2_mix002.wav"]
+    lab = read_labels(str(meta), STARSS23, STARSS)
+    assert lab.frame[0] == 0 and len(lab.frame) > 100

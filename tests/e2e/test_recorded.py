@@ -314,3 +314,16 @@ def test_the_stand_in_holds_what_the_docs_say():
     events = [e for *_, evs in RECORDINGS for e in evs]
     assert any(e.az[0] != e.az[1] for e in events)  # moving events
     assert any(e.off - e.on < 10 for e in events)  # shorter than min_active
+
+
+def test_the_torch_dataset_serves_recorded_scenes(made):
+    pytest.importorskip("torch")
+    from tsel_data.torch import Dataset
+
+    _, out = made
+    ds = Dataset(out, "test")
+    item = ds[0]
+    assert tuple(item["audio"].shape) == (4, 240000) and item["pairing"] == "recorded"
+    active = item["active"][0].numpy()
+    assert np.isfinite(item["azimuth"][0].numpy()[active]).all()
+    assert np.isnan(item["azimuth"][0].numpy()[~active]).all()

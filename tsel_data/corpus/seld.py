@@ -131,10 +131,13 @@ def find_recordings(root: str, folder: str) -> list[Recording]:
 
 
 def _wavs(top: str) -> list[str]:
+    """The WAV files below ``top`` (through linked folders), but hidden ones (``._NAME.wav``
+    of a macOS copy) and anything that is not a regular file (a FIFO would block a read)."""
     out = []
-    for d, dirs, files in os.walk(top):
+    for d, dirs, files in os.walk(top, followlinks=True):
         dirs[:] = sorted(x for x in dirs if not x.startswith("."))
-        out += [os.path.relpath(os.path.join(d, f), top) for f in files if f.lower().endswith(".wav")]
+        out += [os.path.relpath(os.path.join(d, f), top) for f in files
+                if f.lower().endswith(".wav") and not f.startswith(".") and os.path.isfile(os.path.join(d, f))]
     return sorted(out)
 
 
@@ -182,7 +185,7 @@ def read_labels(path: str, seld: SeldSet, ontology: Ontology | None, override: t
     want = " or ".join(str(w) for w in widths)
     rows = {k: [] for k in ("frame", "class", "source", "azimuth", "elevation", "distance")}
     try:
-        with open(path, newline="", encoding="utf-8") as f:
+        with open(path, newline="", encoding="utf-8-sig") as f:  # a spreadsheet's byte-order mark
             lines = list(csv.reader(f))
     except (OSError, UnicodeDecodeError) as e:
         raise ConfigError(f"{path}: cannot read the label file ({e}); check the file") from None

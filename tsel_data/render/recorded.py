@@ -29,12 +29,14 @@ from ..store.scene import Scene
 MOVING_DEG = 10.0
 
 
-@functools.lru_cache(maxsize=64)
+# every recording a process renders from is hashed once (a file of a few hours is a few GB:
+# seconds), its labels read once
+@functools.lru_cache(maxsize=None)
 def _digest(path: str, size: int, mtime_ns: int) -> str:
     return sha256_file(path)
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=256)
 def _labels(path: str, dataset: str, columns: tuple, size: int, mtime_ns: int):
     return read_labels(path, SETS[dataset], None, columns)
 
