@@ -114,6 +114,15 @@ class Spatial(StrEnum):
     DIFFUSE = "diffuse"
 
 
+class NoiseKind(StrEnum):
+    """What a scene hears besides its sources (``[noise]``; render/noise.py ``NOISE_KINDS``)."""
+
+    AMBIENCE = "ambience"
+    DIFFUSE = "diffuse"
+    BABBLE = "babble"
+    SENSOR = "sensor"
+
+
 class Motion(StrEnum):
     """``scene.motion``: every directional source static, moving, or each moving with a probability."""
 

@@ -15,8 +15,7 @@ import zlib
 import numpy as np
 
 from ..banks.scenes import BankRequest, open_bank_cached, resolve_bank, split_rooms
-from ..choices import (LevelModel, NoiseSpectrum, Pairing, QueryType, Role, Scenario, SensorLevel,
-                       SimilarityMeasure, Spatial)
+from ..choices import Additive, LevelModel, Pairing, QueryType, Role, Scenario, SimilarityMeasure, Spatial
 from ..config import Config, rooms_without_bank
 from ..config.receiver import array_pose, hrtf_problem
 from ..core.progress import bar
@@ -26,8 +25,9 @@ from ..corpus.clip import Clip
 from ..errors import TselError
 from ..receivers import receiver
 from ..runtime.pool import ordered_pool
+from ..render.noise import draw_noise
 from ..scene.queries import margins as relation_margins
-from ..scene.recipe import BUILTIN_DEMO_BANK, BankRef, NoiseItem, QueryPlan, Roots, SceneRecipe, Source, plan_roots
+from ..scene.recipe import BUILTIN_DEMO_BANK, BankRef, QueryPlan, Roots, SceneRecipe, Source, plan_roots
 from ..store.layout import Layout
 from .catalog import MIN_CLIPS, CatalogScan, build_catalog, resolve_corpus_dir
 from .placement import MAX_TRIES, place, place_bank
@@ -215,7 +215,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
         for _ in range(n_int):
             chosen.append(_pick_interferer(rng, cat, chosen, (t, q), sc, split, index))
 
-    additive = Spatial.DIFFUSE if sc.additive == "diffuse" else Spatial.ADDITIVE
+    additive = Spatial.DIFFUSE if sc.additive == Additive.DIFFUSE else Spatial.ADDITIVE
     spatial = [Spatial.DIRECTIONAL] + [
         additive if (scenario == Scenario.DIRECTIONAL_ADDITIVE and k == 0) else Spatial.DIRECTIONAL
         for k in range(n_int)]
@@ -262,41 +262,11 @@ def _powers(cfg: Config, split: str, index: int, spatial: list) -> list:
 
 
 def _noise_items(cfg: Config, split: str, index: int, cat: CatalogView, chosen: list, bank_room) -> tuple:
-    """The scene's noises (``[noise]``), drawn from its stream 3: the ambience recording of
-    its room and where in it, the diffuse field's spectrum, the babble's clips and
-    directions, the sensor noise's level; each with an SNR and a seed of its own."""
-    nc = cfg.noise
-    rng = scene_rng(cfg.seed, split, index, 3)
-    n = int(round(cfg.audio.duration * cfg.audio.fs))
-    items = []
-    if nc.ambience:
-        rec = cat.ambience.for_room(bank_room, rng)
-        offset = rec.offset(rng, n, nc.ambience_segments, index)
-        rel = os.path.relpath(rec.path, cat.ambience.root).replace(os.sep, "/")
-        items.append(NoiseItem("ambience", int(rng.integers(2**31 - 1)), round(float(nc.ambience_snr.sample(rng)), 3),
-                               file=rel, offset=offset))
-    if nc.diffuse != NoiseSpectrum.NONE:
-        clips = ()
-        if nc.diffuse == NoiseSpectrum.CLIP:
-            c = cat.clips[int(rng.integers(len(cat.clips)))]
-            clips = ((cat.roots.relative_clip(c.audio), c.offset),)
-        items.append(NoiseItem("diffuse", int(rng.integers(2**31 - 1)), round(float(nc.diffuse_snr.sample(rng)), 3),
-                               spectrum=str(nc.diffuse), clips=clips))
-    if nc.babble:
-        pool = np.setdiff1d(np.arange(len(cat.clips)), chosen)
-        picked = rng.choice(pool, size=min(nc.babble, len(pool)), replace=False)
-        clips = tuple((cat.roots.relative_clip(cat.clips[i].audio), cat.clips[i].offset) for i in picked)
-        az = rng.uniform(-180.0, 180.0, len(picked))
-        el = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, len(picked))))  # uniform over the sphere
-        dirs = tuple((round(float(a), 3), round(float(e), 3)) for a, e in zip(az, el))
-        items.append(NoiseItem("babble", int(rng.integers(2**31 - 1)), round(float(nc.babble_snr.sample(rng)), 3),
-                               clips=clips, directions=dirs))
-    if nc.sensor != SensorLevel.NONE:
-        level = round(float(nc.sensor_level.sample(rng)), 3)
-        seed = int(rng.integers(2**31 - 1))
-        items.append(NoiseItem("sensor", seed, level, None) if nc.sensor == SensorLevel.SNR
-                     else NoiseItem("sensor", seed, None, level))
-    return tuple(items)
+    """The scene's noises (``[noise]``), drawn from its stream 3 (render/noise.py
+    ``NOISE_KINDS``: the ambience recording of its room and where in it, the diffuse
+    field's spectrum, the babble's clips and directions, the sensor noise's level; each
+    with an SNR and a seed of its own)."""
+    return draw_noise(cfg, scene_rng(cfg.seed, split, index, 3), index, cat, chosen, bank_room)
 
 
 # Same-kind distractors get |TIR| >= margin_level + this, so the loudness relation holds

@@ -371,10 +371,8 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
 def _noise_record(item, nz, norm: float, level_ch) -> NoiseRecord:
     """What the record says of one noise: as planned (``item``, names as the plan gives
     them) and as mixed (``nz``: its SNR measured, its level after the clipping guard)."""
-    return NoiseRecord(item.kind, None if nz.snr_db is None else round(float(nz.snr_db), 3),
-                       round(noise_level_dbfs(nz.images[0] * np.float32(norm), level_ch), 3), item.file,
-                       item.offset, item.spectrum, [list(c) for c in item.clips] or None,
-                       [list(d) for d in item.directions] or None)
+    return NoiseRecord.of(item, None if nz.snr_db is None else round(float(nz.snr_db), 3),
+                          round(noise_level_dbfs(nz.images[0] * np.float32(norm), level_ch), 3))
 
 
 def _started(x: np.ndarray, start: float, fs: int) -> np.ndarray:

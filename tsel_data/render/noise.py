@@ -17,6 +17,10 @@ in dBFS is that RMS per channel. Noise is never a source: no label, no position.
 """
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..acoustics.capsules import capsule_model
@@ -26,38 +30,128 @@ from ..corpus.ambience import omni_energy, read_segment, snr_gain
 from ..corpus.audio import active_rms, frame_activity, load_clip_cached
 from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
 from ..dsp.timevarying import render_static
+from ..choices import NoiseKind, NoiseSpectrum, SensorLevel
 from ..errors import AudioError
+from ..scene.recipe import NoiseItem
 
 BABBLE_DISTANCE = 10.0  # m: a far source, a plane wave to a 10 cm array (its curvature is below 0.5 mm)
 SPECTRUM_FLOOR = 20.0  # Hz: pink and brown spectra are flat below it (no infinite DC)
+# power falls as 1/f^k above the floor
+SPECTRUM_EXPONENTS = {NoiseSpectrum.WHITE: 0.0, NoiseSpectrum.PINK: 1.0, NoiseSpectrum.BROWN: 2.0}
+
+
+# --- drawing (the planner: a recipe's NoiseItem, from the scene's noise stream) ------------------
+
+
+def _draw_ambience(cfg, rng, index: int, cat, chosen, bank_room, n: int) -> NoiseItem:
+    nc = cfg.noise
+    rec = cat.ambience.for_room(bank_room, rng)
+    offset = rec.offset(rng, n, nc.ambience_segments, index)
+    rel = os.path.relpath(rec.path, cat.ambience.root).replace(os.sep, "/")
+    return NoiseItem(NoiseKind.AMBIENCE, int(rng.integers(2**31 - 1)), round(float(nc.ambience_snr.sample(rng)), 3),
+                     file=rel, offset=offset)
+
+
+def _draw_diffuse(cfg, rng, index: int, cat, chosen, bank_room, n: int) -> NoiseItem:
+    nc = cfg.noise
+    clips = ()
+    if nc.diffuse == NoiseSpectrum.CLIP:
+        c = cat.clips[int(rng.integers(len(cat.clips)))]
+        clips = ((cat.roots.relative_clip(c.audio), c.offset),)
+    return NoiseItem(NoiseKind.DIFFUSE, int(rng.integers(2**31 - 1)), round(float(nc.diffuse_snr.sample(rng)), 3),
+                     spectrum=str(nc.diffuse), clips=clips)
+
+
+def _draw_babble(cfg, rng, index: int, cat, chosen, bank_room, n: int) -> NoiseItem:
+    nc = cfg.noise
+    pool = np.setdiff1d(np.arange(len(cat.clips)), chosen)
+    picked = rng.choice(pool, size=min(nc.babble, len(pool)), replace=False)
+    clips = tuple((cat.roots.relative_clip(cat.clips[i].audio), cat.clips[i].offset) for i in picked)
+    az = rng.uniform(-180.0, 180.0, len(picked))
+    el = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, len(picked))))  # uniform over the sphere
+    dirs = tuple((round(float(a), 3), round(float(e), 3)) for a, e in zip(az, el))
+    return NoiseItem(NoiseKind.BABBLE, int(rng.integers(2**31 - 1)), round(float(nc.babble_snr.sample(rng)), 3),
+                     clips=clips, directions=dirs)
+
+
+def _draw_sensor(cfg, rng, index: int, cat, chosen, bank_room, n: int) -> NoiseItem:
+    nc = cfg.noise
+    level = round(float(nc.sensor_level.sample(rng)), 3)
+    seed = int(rng.integers(2**31 - 1))
+    return (NoiseItem(NoiseKind.SENSOR, seed, level, None) if nc.sensor == SensorLevel.SNR
+            else NoiseItem(NoiseKind.SENSOR, seed, None, level))
+
+
+# --- images (the renderer: an item as a receiver hears it, unscaled) -----------------------------
+
+
+def _ambience_image(item, pose, fs: int, n: int, duration: float, hop: float, threshold_db: float) -> np.ndarray:
+    x = read_segment(item.file, int(item.offset), n)
+    if x.shape[0] != pose.n_channels:
+        raise AudioError(f"ambience {item.file} has {x.shape[0]} channels but {pose.format} has {pose.n_channels}; "
+                         f"use recordings made with the receiver (TAU-SNoise_DB: foa or tetra)")
+    return x
+
+
+def _sensor_image(item, pose, fs: int, n: int, duration: float, hop: float, threshold_db: float) -> np.ndarray:
+    return np.random.default_rng([item.seed, 0]).standard_normal((pose.n_channels, n)).astype(np.float32)
+
+
+def _diffuse_image(item, pose, fs: int, n: int, duration: float, hop: float, threshold_db: float) -> np.ndarray:
+    rng = np.random.default_rng([item.seed, 0])
+    model = capsule_model(pose, fs)
+    shape = _spectrum(item, fs, duration)
+    return csd_noise(rng, 1, n, fs, lambda f: model.diffuse_csd(f) * shape(f)[:, None, None])[0].astype(np.float32)
+
+
+def _babble_image(item, pose, fs: int, n: int, duration: float, hop: float, threshold_db: float) -> np.ndarray:
+    model = capsule_model(pose, fs)
+    out = np.zeros((pose.n_channels, n), dtype=np.float32)
+    for (path, offset), (az, el) in zip(item.clips, item.directions):
+        x = load_clip_cached(path, fs, duration, float(offset))
+        level = active_rms(x[None], frame_activity(x, fs, hop, int(round(duration / hop)), threshold_db), fs, hop)
+        if not level > 0:
+            continue  # a silent clip adds nothing
+        out += render_static(x / level, _plane_wave(model, pose, az, el, fs))[:, :n]
+    return out
+
+
+@dataclass(frozen=True)
+class NoiseSpec:
+    """One kind of noise: whether a config asks for it (``enabled(noise_config)``), how the
+    planner draws its :class:`~tsel_data.scene.recipe.NoiseItem` (``draw(cfg, rng, index,
+    catalog view, chosen clips, bank room, samples)``), and how a receiver hears it
+    (``image(item, pose, fs, samples, duration, hop, threshold_db)``, unscaled)."""
+
+    enabled: Callable
+    draw: Callable
+    image: Callable
+
+
+# One entry per kind, in the order the planner draws them from a scene's noise stream:
+# adding a kind is its enum value (choices.NoiseKind), its spec here and its config keys.
+NOISE_KINDS = {
+    NoiseKind.AMBIENCE: NoiseSpec(lambda nc: bool(nc.ambience), _draw_ambience, _ambience_image),
+    NoiseKind.DIFFUSE: NoiseSpec(lambda nc: nc.diffuse != NoiseSpectrum.NONE, _draw_diffuse, _diffuse_image),
+    NoiseKind.BABBLE: NoiseSpec(lambda nc: bool(nc.babble), _draw_babble, _babble_image),
+    NoiseKind.SENSOR: NoiseSpec(lambda nc: nc.sensor != SensorLevel.NONE, _draw_sensor, _sensor_image),
+}
+
+
+def draw_noise(cfg, rng, index: int, cat, chosen, bank_room) -> tuple:
+    """A scene's noises: every kind its config asks for, drawn in :data:`NOISE_KINDS` order."""
+    n = int(round(cfg.audio.duration * cfg.audio.fs))
+    return tuple(spec.draw(cfg, rng, index, cat, chosen, bank_room, n)
+                 for spec in NOISE_KINDS.values() if spec.enabled(cfg.noise))
 
 
 def noise_image(item, pose, fs: int, n: int, duration: float, hop: float, threshold_db: float) -> np.ndarray:
     """NoiseItem ``item`` as ``pose`` hears it, unscaled: float32 [C, n]."""
-    c = pose.n_channels
-    if item.kind == "ambience":
-        x = read_segment(item.file, int(item.offset), n)
-        if x.shape[0] != c:
-            raise AudioError(f"ambience {item.file} has {x.shape[0]} channels but {pose.format} has {c}; use "
-                             f"recordings made with the receiver (TAU-SNoise_DB: foa or tetra)")
-        return x
-    rng = np.random.default_rng([item.seed, 0])
-    if item.kind == "sensor":
-        return rng.standard_normal((c, n)).astype(np.float32)
-    model = capsule_model(pose, fs)
-    if item.kind == "diffuse":
-        shape = _spectrum(item, fs, duration)
-        return csd_noise(rng, 1, n, fs, lambda f: model.diffuse_csd(f) * shape(f)[:, None, None])[0].astype(np.float32)
-    if item.kind == "babble":
-        out = np.zeros((c, n), dtype=np.float32)
-        for (path, offset), (az, el) in zip(item.clips, item.directions):
-            x = load_clip_cached(path, fs, duration, float(offset))
-            level = active_rms(x[None], frame_activity(x, fs, hop, int(round(duration / hop)), threshold_db), fs, hop)
-            if not level > 0:
-                continue  # a silent clip adds nothing
-            out += render_static(x / level, _plane_wave(model, pose, az, el, fs))[:, :n]
-        return out
-    raise ValueError(f"unknown noise kind {item.kind!r}")
+    try:
+        spec = NOISE_KINDS[item.kind]
+    except KeyError:
+        raise ValueError(f"unknown noise kind {item.kind!r}") from None
+    return spec.image(item, pose, fs, n, duration, hop, threshold_db)
 
 
 def noise_gain(item, target_image: np.ndarray, noise: np.ndarray, level_channels) -> float:
@@ -74,7 +168,7 @@ def noise_gain(item, target_image: np.ndarray, noise: np.ndarray, level_channels
 
 def _spectrum(item, fs: int, duration: float):
     """freqs -> the diffuse noise's power spectrum (1 at its reference)."""
-    if item.spectrum == "clip":
+    if item.spectrum == NoiseSpectrum.CLIP:
         path, offset = item.clips[0]
         x = np.asarray(load_clip_cached(path, fs, duration, float(offset)), dtype=np.float64)
         n_fft = 4096
@@ -83,7 +177,7 @@ def _spectrum(item, fs: int, duration: float):
         psd = psd / max(float(psd.mean()), 1e-30)
         grid = sfft.rfftfreq(n_fft, 1.0 / fs)
         return lambda f: np.interp(f, grid, psd)
-    power = {"white": 0.0, "pink": 1.0, "brown": 2.0}[item.spectrum]
+    power = SPECTRUM_EXPONENTS[item.spectrum]
     return lambda f: (np.maximum(np.asarray(f, dtype=np.float64), SPECTRUM_FLOOR) / 1000.0) ** -power
 
 

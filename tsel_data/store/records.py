@@ -210,6 +210,13 @@ class NoiseRecord(_JsonMapping):
     clips: list | None = None
     directions: list | None = None
 
+    @classmethod
+    def of(cls, item, snr_db: float | None, level_dbfs: float) -> "NoiseRecord":
+        """The record of a recipe's :class:`~tsel_data.scene.recipe.NoiseItem` (names as the
+        plan gives them) with what was measured in the mix."""
+        return cls(str(item.kind), snr_db, level_dbfs, item.file, item.offset, item.spectrum,
+                   [list(c) for c in item.clips] or None, [list(d) for d in item.directions] or None)
+
     def to_json(self) -> dict:
         d = {"kind": self.kind, "snr_db": self.snr_db, "level_dbfs": self.level_dbfs}
         for key in ("file", "offset", "spectrum", "clips", "directions"):
