@@ -67,7 +67,7 @@ class FeatureConfig:
 
     def resolve(self, fmt: str) -> list[str]:
         """The spatial features computed for a receiver (its name, e.g. "mic4", "foa")."""
-        ambisonic = receiver(fmt).localizer == "intensity"
+        ambisonic = receiver(fmt).ambisonic
         if self.spatial == "auto":
             return ["iv" if ambisonic else "gcc"]
         names = self.spatial.split("+")

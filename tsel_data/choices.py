@@ -123,6 +123,17 @@ class NoiseKind(StrEnum):
     SENSOR = "sensor"
 
 
+class Localizer(StrEnum):
+    """How ``tsel verify`` reads a receiver's directions (receivers/spec.py ``localizer``):
+    steered response power, the intensity vector of first-order ambisonics, the mid/side
+    level difference of the DCASE stereo pair, or none (binaural)."""
+
+    SRP = "srp"
+    INTENSITY = "intensity"
+    MID_SIDE = "mid-side"
+    NONE = ""
+
+
 class Motion(StrEnum):
     """``scene.motion``: every directional source static, moving, or each moving with a probability."""
 

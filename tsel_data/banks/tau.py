@@ -61,8 +61,9 @@ TAU_ROOM_NUMBERS = {
 _RIR_FILE = re.compile(r"^rirs_(\d+)_(.+)\.mat$")
 
 
-# the DB's own field name for each receiver it was measured with
-TAU_FIELDS = {"foa": "foa", "tetra": "mic"}
+# the DB's fields: the RIRs of the receivers it was measured with, named as those
+# receivers' DCASE audio folders (ReceiverSpec.export_folder)
+TAU_FIELDS = ("foa", "mic")
 INDEX_FILE = "rirdata.mat"  # what makes a folder the TAU-SRIR DB
 
 
@@ -86,9 +87,9 @@ class TauBank(Bank):
         self.root = Path(root)
         self.source = str(self.root)
         self.format = check_format(format, f"{root}: ")
-        if self.format not in TAU_FIELDS:
+        self._field = receiver(self.format).export_folder
+        if self._field not in TAU_FIELDS:
             raise BankError(f"{root}: the TAU-SRIR DB holds foa and mic (tetra) RIRs, not {self.format}")
-        self._field = TAU_FIELDS[self.format]
         self.channel_names = receiver(self.format).channel_names
         for name in ("rirdata.mat", "measinfo.mat"):
             if not (self.root / name).exists():

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..choices import ReceiverModel as M
+from ..choices import Localizer as L, ReceiverModel as M
 from ..core.geometry import sph_to_cart
 from .spec import PATTERN_ALPHA, ReceiverSpec
 
@@ -69,7 +69,7 @@ FOA = ReceiverSpec(
     channel_names=("W", "Y", "Z", "X"),
     # two virtual cardioids at ±90°: ½(W ± Y) (receivers/stereo.py)
     stereo=((0.5, 0.5, 0.0, 0.0), (0.5, -0.5, 0.0, 0.0)),
-    level_channels=(0,), additive=(1.0, 0.0, 0.0, 0.0), localizer="intensity", export_folder="foa",
+    level_channels=(0,), additive=(1.0, 0.0, 0.0, 0.0), localizer=L.INTENSITY, export_folder="foa",
     convention="ACN (W, Y, Z, X), SN3D",
     source="DCASE SELD FOA format (TAU-SRIR DB, STARSS23)")
 
@@ -164,7 +164,7 @@ LINEAR8 = ReceiverSpec(
                "axis: azimuth phi and 180 - phi sound alike",
     source="E. Hadad, F. Heese, P. Vary, S. Gannot, \"Multichannel audio database in various acoustic "
            "environments\", IWAENC 2014 (the 8-8-8-8-8-8-8 cm configuration)",
-    ambiguity="lateral", localizer="srp")
+    ambiguity="lateral", localizer=L.SRP)
 
 # DCASE 2025 task 3 (stereo SELD): L = W + Y, R = W - Y of the FOA recording (mid-side
 # with an omni mid): coincident cardioids aimed at ±90° with a peak gain of 2.
@@ -174,7 +174,7 @@ STEREO = ReceiverSpec(
     summary="the DCASE 2025 task 3 stereo pair: L = W + Y, R = W - Y of first-order ambisonics (coincident "
             "cardioids at +-90 degrees)",
     channel_names=("L", "R"), stereo=(0, 1), export_folder="stereo", ambiguity="lateral",
-    localizer="mid-side",
+    localizer=L.MID_SIDE,
     convention="L = W + Y, R = W - Y of ACN/SN3D first-order ambisonics (DCASE 2025 task 3); azimuth phi and "
                "180 - phi sound alike, elevation is not heard: DCASE 2025 labels fold azimuth into [-90, 90] "
                "and keep distance",
@@ -187,7 +187,7 @@ BINAURAL = ReceiverSpec(
     name="binaural", model=M.HRTF, layout=_fixed(np.array([[0.0, HEAD_RADIUS, 0.0], [0.0, -HEAD_RADIUS, 0.0]])),
     radius=HEAD_RADIUS, summary="two ears through a SOFA HRTF (array.hrtf, e.g. the MIT KEMAR set); the head "
                                 "faces array.yaw", channel_names=("left", "right"), stereo=(0, 1),
-    export_folder="binaural", localizer="", unjudged="binaural: SRP-PHAT and the intensity vector cannot read "
+    export_folder="binaural", localizer=L.NONE, unjudged="binaural: SRP-PHAT and the intensity vector cannot read "
                                                       "two ears (use the ITD/ILD)",
     convention="left and right ear signals through the HRTF of array.hrtf (SimpleFreeFieldHRIR); head frame = "
                "array frame (x front, y left, z up)",

@@ -29,7 +29,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..choices import ReceiverModel
+from ..choices import Localizer, ReceiverModel
 
 # First-order patterns: gain α + (1 - α) cos Θ for a wave from Θ off the capsule's axis.
 PATTERN_ALPHA = {
@@ -102,7 +102,7 @@ class ReceiverSpec:
     aliases: tuple = ()
     base: str = ""
     matrix: tuple = ()
-    localizer: str = "srp"
+    localizer: str = Localizer.SRP
     unjudged: str = ""
     export_folder: str = "mic"
     source: str = ""
@@ -119,6 +119,12 @@ class ReceiverSpec:
     def bank_format(self) -> str:
         """The format of the RIR banks this receiver renders from (a mixed receiver's base)."""
         return self.base or self.name
+
+    @property
+    def ambisonic(self) -> bool:
+        """Whether its channels are first-order ambisonics (a direction reads off their
+        intensity vector)."""
+        return self.localizer == Localizer.INTENSITY
 
     @property
     def coincident(self) -> bool:

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..acoustics.sphere import rigid_sphere_delay
-from ..choices import Baffle, ReceiverModel
+from ..choices import Baffle, Localizer, ReceiverModel
 from ..core.geometry import SOUND_SPEED, azimuth_difference, circular_mean, sph_to_cart, wrap_azimuth
 from ..core.progress import bar
 from ..dsp.features import mic_pairs, stft
@@ -84,12 +84,9 @@ def _maps(spec, owner, freqs, fs, n_frames, fmt, mic_positions, n_fft, fmin, fma
     power = np.mean(np.abs(spec) ** 2, axis=0)  # [J, K]
     mask = power >= power.max(axis=1, keepdims=True) * 10 ** (-dynamic_db / 10)
     mask &= power > 0
-    localizer = receiver(fmt).localizer
-    if localizer == "intensity":
-        return _intensity_maps(spec, mask, owner, n_frames)
-    if localizer == "mid-side":
-        return _mid_side_maps(spec, mask, owner, n_frames)
     rx = receiver(fmt)
+    if rx.localizer in _DIRECTION_MAPS:
+        return _DIRECTION_MAPS[rx.localizer](spec, mask, owner, n_frames)
     # capsules on a rigid sphere hear a wave later than free-field omnis would (the sphere's
     # phase): steer at the sphere's delays
     sphere = rx.radius if rx.model == ReceiverModel.SPHERE and baffle == Baffle.RIGID else None
@@ -173,6 +170,11 @@ def _mid_side_maps(spec, mask, owner, n_frames, smooth_deg: float = 4.0) -> np.n
     flat = (np.arange(n_j)[:, None] * 360 + bins).ravel()
     hist = np.bincount(flat, weights=weight.ravel(), minlength=n_j * 360).reshape(n_j, 360)
     return _smooth_circular(_per_label_frame(hist, owner, n_frames), smooth_deg)
+
+
+
+# localizers that read a direction off the channels themselves (the rest steer over capsules)
+_DIRECTION_MAPS = {Localizer.INTENSITY: _intensity_maps, Localizer.MID_SIDE: _mid_side_maps}
 
 
 def fold_front_back(az):
