@@ -160,3 +160,22 @@ def test_missing_audio_is_reported(demo_corpus, tmp_path):
     missing = json.load(open(tmp_path / "b" / "missing_clips.json"))["splits"]
     (split, entry), = missing.items()
     assert entry["missing"] == 1 and victim.rsplit(".", 1)[0] in entry["clip_ids"][0]
+
+
+def test_generate_finalizes_the_shards_it_wrote_without_hashing_them_again(generated_dataset, tmp_path, monkeypatch):
+    """The writers hashed their shards as they sealed them: generate's finalize checks
+    size and time against those seals; `tsel finalize` alone hashes every shard."""
+    import tsel_data.store.integrity as integrity
+
+    hashed = []
+    real = integrity.sha256_file
+    monkeypatch.setattr(integrity, "sha256_file", lambda p: hashed.append(os.path.basename(p)) or real(p))
+    cfg = generated_dataset("small").cfg
+    out = str(tmp_path / "ds")
+    generate(cfg, out, workers=1, progress=False)
+    assert not [h for h in hashed if h.startswith("shard-")]
+    hashed.clear()
+    finalize(out)
+    shards = sum(1 for _, _, fs in os.walk(out) for f in fs if f.startswith("shard-") and f.endswith(".h5"))
+    assert sorted(h for h in hashed if h.startswith("shard-")) and \
+        len([h for h in hashed if h.endswith(".h5")]) == shards

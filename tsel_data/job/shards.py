@@ -47,6 +47,9 @@ class Plan:
     doc: dict
     _parts: dict[str, "PlanPart"] = field(default_factory=dict, repr=False)
     _hashed: set = field(default_factory=set, repr=False)  # splits whose plan file matched its seal by sha256
+    # (split, shard) written by this plan's own render stage: their writers hashed them as
+    # they sealed them, so finalize checks their size and time against the seal, not their bytes
+    _written: set = field(default_factory=set, repr=False)
 
     @property
     def out_dir(self) -> str:
@@ -294,6 +297,8 @@ def _render_todo(plan: Plan, tasks, todo, workers, progress, executor, scheduler
                     bar.update(n)
                     if problem:
                         failed.append(f"{t.files[0]}: {problem}")
+                    else:
+                        plan._written.add((t.split, t.shard))
     if failed:
         raise DatasetError(f"{len(failed)} shard(s) could not be rendered (the others were), e.g. {failed[0]}; fix the "
                            f"input and rerun with --resume (shards that read a changed clip are rendered again)")
@@ -339,7 +344,7 @@ def finalize(plan: Plan | str, corpus_dir: str | None = None, bank: str | None =
         missing, bad = [], []
         for task, recipes, st in zip(plan.tasks, shard_recipes, stats):
             state, why = shard_state(layout, task.split, task.shard, expected_fingerprint(recipes, plan.roots, st),
-                                     deep=True)
+                                     deep=(task.split, task.shard) not in plan._written)
             if state == "missing":
                 missing.append(task.files[0])
                 continue
