@@ -3,7 +3,7 @@ bank references and shard records."""
 from __future__ import annotations
 
 import math
-from dataclasses import fields, is_dataclass
+from dataclasses import MISSING, field, fields, is_dataclass
 
 import numpy as np
 
@@ -31,3 +31,57 @@ def jsonable(x):
     if isinstance(x, float) and not math.isfinite(x):
         return None
     return x
+
+
+# --- records and recipes whose JSON is their fields ---------------------------------------------
+
+_CODEC = "json"
+_NONE = object()
+
+
+def key(default=MISSING, *, default_factory=MISSING, omit=None, encode=None, decode=None, missing=_NONE):
+    """A dataclass field as one key of the class's JSON (:class:`JsonFields`): ``omit(obj)``
+    True leaves the key out (an optional key, declared here once); ``encode(value)`` and
+    ``decode(json value)`` convert it; ``missing``: the value when the JSON lacks the key
+    (default: the field's default)."""
+    meta = {_CODEC: (omit, encode, decode, missing)}
+    if default_factory is not MISSING:
+        return field(default_factory=default_factory, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+class JsonFields:
+    """``to_json``/``from_json`` derived from a dataclass's fields: key order is field
+    order, a field declared with :func:`key` may be optional or converted. Subclasses are
+    dataclasses; their JSON form is a contract (docs/format.md), so the order of their
+    fields is too."""
+
+    _codecs: dict = {}
+
+    @classmethod
+    def _codec(cls) -> list:
+        found = JsonFields._codecs.get(cls)
+        if found is None:
+            found = JsonFields._codecs[cls] = [(f.name, *f.metadata.get(_CODEC, (None, None, None, _NONE)))
+                                              for f in fields(cls)]
+        return found
+
+    def to_json(self) -> dict:
+        out = {}
+        for name, omit, encode, _, _ in self._codec():
+            if omit is not None and omit(self):
+                continue
+            value = getattr(self, name)
+            out[name] = encode(value) if encode is not None else value
+        return out
+
+    @classmethod
+    def from_json(cls, d: dict | None):
+        d = d or {}
+        kw = {}
+        for name, _, _, decode, missing in cls._codec():
+            if name in d:
+                kw[name] = decode(d[name]) if decode is not None else d[name]
+            elif missing is not _NONE:
+                kw[name] = missing
+        return cls(**kw)

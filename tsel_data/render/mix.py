@@ -407,11 +407,11 @@ def _room_and_pose(recipe: SceneRecipe, rt60_measured, named: BankRef | None) ->
     None). ``recipe`` names files as they are here; the record names the bank as the
     plan does (``named``)."""
     if recipe.room is not None:
-        room = RoomRecord(list(recipe.room.dims), recipe.room.rt60, rt60_measured)
+        room = RoomRecord(dims=list(recipe.room.dims), rt60=recipe.room.rt60, rt60_measured=rt60_measured)
         return room, list(recipe.array.centre), recipe.array.yaw
     info = _bank(recipe).room_info(recipe.bank.room)
-    room = RoomRecord(info.get("dims", info.get("dimensions")), info.get("rt60"), None, recipe.bank.room,
-                      named.path)
+    room = RoomRecord(name=recipe.bank.room, bank=named.path, dims=info.get("dims", info.get("dimensions")),
+                      rt60=info.get("rt60"))
     arr = info.get("array") or {}
     if arr.get("centre") is None or arr.get("yaw") is None:
         return room, None, None

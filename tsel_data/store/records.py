@@ -10,12 +10,13 @@ the plain dicts of earlier releases did.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
 from ..corpus.captions import answerable_queries
+from ..core.jsonable import JsonFields, key
 from ..scene.recipe import BankWalk
 
 # Labels in the JSON are rounded: angles to 3 decimals, distances to 4, so the HDF5
@@ -56,35 +57,34 @@ class _JsonMapping:
         return self._json.keys()
 
 
+def _unset(name: str):
+    """``omit``: the key is written only when the field is set (a later addition: records
+    without it keep format 1's bytes)."""
+    return lambda r: getattr(r, name) is None
+
+
+def _encoded(v):
+    return None if v is None else v.to_json()
+
+
 @dataclass(frozen=True)
-class RoomRecord(_JsonMapping):
+class RoomRecord(JsonFields, _JsonMapping):
     """The room: simulated (``dims`` m, requested ``rt60`` s, ``rt60_measured`` s or None),
     or an RIR-bank room (``name``, ``bank`` path; ``dims``/``rt60`` when the bank knows them)."""
 
+    name: str | None = key(None, omit=lambda r: not r.is_bank)
+    bank: str | None = key(None, omit=lambda r: not r.is_bank)
     dims: list | None = None
     rt60: float | None = None
     rt60_measured: float | None = None
-    name: str | None = None
-    bank: str | None = None
 
     @property
     def is_bank(self) -> bool:
         return self.bank is not None
 
-    def to_json(self) -> dict:
-        if self.is_bank:
-            return {"name": self.name, "bank": self.bank, "dims": self.dims, "rt60": self.rt60,
-                    "rt60_measured": self.rt60_measured}
-        return {"dims": self.dims, "rt60": self.rt60, "rt60_measured": self.rt60_measured}
-
-    @classmethod
-    def from_json(cls, d: dict | None) -> "RoomRecord":
-        d = d or {}
-        return cls(d.get("dims"), d.get("rt60"), d.get("rt60_measured"), d.get("name"), d.get("bank"))
-
 
 @dataclass(frozen=True)
-class ArrayRecord(_JsonMapping):
+class ArrayRecord(JsonFields, _JsonMapping):
     """The receiver: ``format`` (its name); ``centre`` [x, y, z] room frame m and ``yaw``
     degrees (None when a measured bank does not know them); ``side`` m (mic4);
     ``mic_positions`` [[x, y, z]] array frame m. Only for receivers that have them (absent
@@ -92,16 +92,16 @@ class ArrayRecord(_JsonMapping):
     array's capsules, ``baffle`` of a sphere array, ``hrtf`` (the SOFA file, as the plan
     names it) and ``interpolation`` of a binaural receiver."""
 
-    format: str
+    format: str = key(missing="")
     centre: list | None = None
     yaw: float | None = None
     side: float | None = None
     mic_positions: list | None = None
-    patterns: list | None = None
-    orientations: list | None = None
-    baffle: str | None = None
-    hrtf: str | None = None
-    interpolation: str | None = None
+    patterns: list | None = key(None, omit=_unset("patterns"))
+    orientations: list | None = key(None, omit=_unset("orientations"))
+    baffle: str | None = key(None, omit=_unset("baffle"))
+    hrtf: str | None = key(None, omit=_unset("hrtf"))
+    interpolation: str | None = key(None, omit=_unset("interpolation"))
 
     @classmethod
     def of(cls, pose, centre, yaw, mic_positions) -> "ArrayRecord":
@@ -112,26 +112,13 @@ class ArrayRecord(_JsonMapping):
                    None if pose.orientations is None else [list(o) for o in pose.orientations],
                    pose.baffle, pose.hrtf, pose.interpolation)
 
-    def to_json(self) -> dict:
-        d = {"format": self.format, "centre": self.centre, "yaw": self.yaw, "side": self.side,
-             "mic_positions": self.mic_positions}
-        for key in _ARRAY_OPTIONAL:  # only when set: records of mic4/foa keep format 1's bytes
-            if getattr(self, key) is not None:
-                d[key] = getattr(self, key)
-        return d
 
-    @classmethod
-    def from_json(cls, d: dict | None) -> "ArrayRecord":
-        d = d or {}
-        return cls(d.get("format", ""), d.get("centre"), d.get("yaw"), d.get("side"), d.get("mic_positions"),
-                   *(d.get(k) for k in _ARRAY_OPTIONAL))
-
-
-_ARRAY_OPTIONAL = ("patterns", "orientations", "baffle", "hrtf", "interpolation")
+def _no_pairing(r) -> bool:
+    return r.pairing is None  # extended queries only: default records keep format 1's bytes
 
 
 @dataclass(frozen=True)
-class SourceRecord(_JsonMapping):
+class SourceRecord(JsonFields, _JsonMapping):
     """One source of a scene: its clip, how it was placed, its labels and level.
 
     azimuth, elevation: [F] degrees, distance: [F] metres (None where positionless);
@@ -144,48 +131,28 @@ class SourceRecord(_JsonMapping):
     role: str
     clip_id: str | None = None
     audio: str | None = None
-    captions: list = field(default_factory=list)
+    captions: list = key(default_factory=list, encode=list, decode=lambda v: list(v or []))
     spatial: str = "directional"
-    moving: bool = False
+    moving: bool = key(False, decode=bool)
     position: list | None = None
     path: list | None = None
-    bank: BankWalk | None = None
-    azimuth: list = field(default_factory=list)
-    elevation: list = field(default_factory=list)
-    distance: list = field(default_factory=list)
-    active: list = field(default_factory=list)
+    bank: BankWalk | None = key(None, encode=lambda b: None if b is None else b.to_dict(),
+                                decode=lambda v: None if v is None else BankWalk.from_dict(v))
+    azimuth: list = key(default_factory=list, decode=lambda v: v or [])
+    elevation: list = key(default_factory=list, decode=lambda v: v or [])
+    distance: list = key(default_factory=list, decode=lambda v: v or [])
+    active: list = key(default_factory=list, decode=lambda v: v or [])
     tir_db: float | None = None
     gain_db: float | None = None
     level_dbfs: float | None = None
-    pairing: str | None = None
-    caption_similarity: float | None = None
-    power_db: float | None = None
-
-    def to_json(self) -> dict:
-        d = {"role": self.role, "clip_id": self.clip_id, "audio": self.audio, "captions": list(self.captions),
-             "spatial": self.spatial, "moving": self.moving, "position": self.position, "path": self.path,
-             "bank": None if self.bank is None else self.bank.to_dict(),
-             "azimuth": self.azimuth, "elevation": self.elevation, "distance": self.distance,
-             "active": self.active, "tir_db": self.tir_db, "gain_db": self.gain_db, "level_dbfs": self.level_dbfs}
-        if self.pairing is not None:  # extended queries only: default records keep format 1's bytes
-            d["pairing"] = self.pairing
-            d["caption_similarity"] = self.caption_similarity
-        if self.power_db is not None:  # levels that follow distance only
-            d["power_db"] = self.power_db
-        return d
+    pairing: str | None = key(None, omit=_no_pairing)
+    caption_similarity: float | None = key(None, omit=_no_pairing)
+    power_db: float | None = key(None, omit=_unset("power_db"))  # levels that follow distance only
 
     @classmethod
     def from_json(cls, d: dict, k: int = 0) -> "SourceRecord":
-        bank = d.get("bank")
-        return cls(role=d.get("role") or ("target" if k == 0 else "interferer"), clip_id=d.get("clip_id"),
-                   audio=d.get("audio"), captions=list(d.get("captions") or []),
-                   spatial=d.get("spatial", "directional"), moving=bool(d.get("moving", False)),
-                   position=d.get("position"), path=d.get("path"),
-                   bank=None if bank is None else BankWalk.from_dict(bank),
-                   azimuth=d.get("azimuth") or [], elevation=d.get("elevation") or [],
-                   distance=d.get("distance") or [], active=d.get("active") or [], tir_db=d.get("tir_db"),
-                   gain_db=d.get("gain_db"), level_dbfs=d.get("level_dbfs"), pairing=d.get("pairing"),
-                   caption_similarity=d.get("caption_similarity"), power_db=d.get("power_db"))
+        """``k``: the source's place in its scene (a record without roles: 0 is the target)."""
+        return super().from_json({**d, "role": d.get("role") or ("target" if k == 0 else "interferer")})
 
     def labels(self, key: str) -> np.ndarray:
         """One label row (``azimuth``, ``elevation`` or ``distance``) as float64 [F], NaN for null."""
@@ -193,7 +160,7 @@ class SourceRecord(_JsonMapping):
 
 
 @dataclass(frozen=True)
-class NoiseRecord(_JsonMapping):
+class NoiseRecord(JsonFields, _JsonMapping):
     """One unlabelled part of a scene (``[noise]``): ``kind`` (``ambience``, ``diffuse``,
     ``babble``, ``sensor``), ``snr_db`` against the target's omni energy over the scene
     (None for sensor noise set in dBFS), ``level_dbfs`` (RMS of its level channels in the
@@ -201,14 +168,14 @@ class NoiseRecord(_JsonMapping):
     ``spectrum`` of diffuse noise, ``clips`` [[audio, offset s]] and ``directions``
     [[azimuth, elevation]] of babble."""
 
-    kind: str
+    kind: str = key(missing="")
     snr_db: float | None = None
     level_dbfs: float | None = None
-    file: str | None = None
-    offset: int | None = None
-    spectrum: str | None = None
-    clips: list | None = None
-    directions: list | None = None
+    file: str | None = key(None, omit=_unset("file"))
+    offset: int | None = key(None, omit=_unset("offset"))
+    spectrum: str | None = key(None, omit=_unset("spectrum"))
+    clips: list | None = key(None, omit=_unset("clips"))
+    directions: list | None = key(None, omit=_unset("directions"))
 
     @classmethod
     def of(cls, item, snr_db: float | None, level_dbfs: float) -> "NoiseRecord":
@@ -217,21 +184,9 @@ class NoiseRecord(_JsonMapping):
         return cls(str(item.kind), snr_db, level_dbfs, item.file, item.offset, item.spectrum,
                    [list(c) for c in item.clips] or None, [list(d) for d in item.directions] or None)
 
-    def to_json(self) -> dict:
-        d = {"kind": self.kind, "snr_db": self.snr_db, "level_dbfs": self.level_dbfs}
-        for key in ("file", "offset", "spectrum", "clips", "directions"):
-            if getattr(self, key) is not None:
-                d[key] = getattr(self, key)
-        return d
-
-    @classmethod
-    def from_json(cls, d: dict) -> "NoiseRecord":
-        return cls(d.get("kind", ""), d.get("snr_db"), d.get("level_dbfs"), d.get("file"), d.get("offset"),
-                   d.get("spectrum"), d.get("clips"), d.get("directions"))
-
 
 @dataclass(frozen=True)
-class LevelsRecord(_JsonMapping):
+class LevelsRecord(JsonFields, _JsonMapping):
     """``target_level_dbfs`` requested, ``peak`` of the mixture, ``normalisation_db``
     (<= 0: the gain applied to the whole mix to avoid clipping)."""
 
@@ -239,18 +194,9 @@ class LevelsRecord(_JsonMapping):
     peak: float | None = None
     normalisation_db: float | None = None
 
-    def to_json(self) -> dict:
-        return {"target_level_dbfs": self.target_level_dbfs, "peak": self.peak,
-                "normalisation_db": self.normalisation_db}
-
-    @classmethod
-    def from_json(cls, d: dict | None) -> "LevelsRecord":
-        d = d or {}
-        return cls(d.get("target_level_dbfs"), d.get("peak"), d.get("normalisation_db"))
-
 
 @dataclass(frozen=True)
-class RecordingRecord(_JsonMapping):
+class RecordingRecord(JsonFields, _JsonMapping):
     """Where a recorded scene comes from (docs/recorded.md): the ``dataset``, the recording
     ``audio`` and its label file ``metadata`` (relative to the corpus folder) with their
     ``sha256``, the window (``start`` s, ``start_frame`` and ``frames`` label frames), the
@@ -258,71 +204,75 @@ class RecordingRecord(_JsonMapping):
     (names), ``class_indices``, ``actors`` (the CSV's source column) and ``events`` (the
     ordinal among sources of one class and actor at once)."""
 
-    dataset: str
-    audio: str
-    metadata: str
-    sha256: str
-    metadata_sha256: str
-    start: float
-    start_frame: int
-    frames: int
+    dataset: str = key(missing="")
+    audio: str = key(missing="")
+    metadata: str = key(missing="")
+    sha256: str = key(missing="")
+    metadata_sha256: str = key(missing="")
+    start: float = key(missing=0.0)
+    start_frame: int = key(missing=0)
+    frames: int = key(missing=0)
     fold: int | None = None
     room: int | None = None
-    classes: list = field(default_factory=list)
-    class_indices: list = field(default_factory=list)
-    actors: list = field(default_factory=list)
-    events: list = field(default_factory=list)
-
-    def to_json(self) -> dict:
-        return {"dataset": self.dataset, "audio": self.audio, "metadata": self.metadata, "sha256": self.sha256,
-                "metadata_sha256": self.metadata_sha256, "start": self.start, "start_frame": self.start_frame,
-                "frames": self.frames, "fold": self.fold, "room": self.room, "classes": list(self.classes),
-                "class_indices": list(self.class_indices), "actors": list(self.actors), "events": list(self.events)}
-
-    @classmethod
-    def from_json(cls, d: dict) -> "RecordingRecord":
-        return cls(d.get("dataset", ""), d.get("audio", ""), d.get("metadata", ""), d.get("sha256", ""),
-                   d.get("metadata_sha256", ""), d.get("start", 0.0), d.get("start_frame", 0), d.get("frames", 0),
-                   d.get("fold"), d.get("room"), list(d.get("classes") or []), list(d.get("class_indices") or []),
-                   list(d.get("actors") or []), list(d.get("events") or []))
+    classes: list = key(default_factory=list, encode=list, decode=lambda v: list(v or []))
+    class_indices: list = key(default_factory=list, encode=list, decode=lambda v: list(v or []))
+    actors: list = key(default_factory=list, encode=list, decode=lambda v: list(v or []))
+    events: list = key(default_factory=list, encode=list, decode=lambda v: list(v or []))
 
 
-@dataclass(frozen=True)
-class SceneRecord(_JsonMapping):
+def _plain(r) -> bool:
+    return r.query_wanted is None  # the query fields: extended queries and recorded scenes only
+
+
+@dataclass(frozen=True, kw_only=True)
+class SceneRecord(JsonFields, _JsonMapping):
     """Everything known about one rendered scene (docs/format.md); source 0 is the target.
 
     The query fields (docs/queries.md) are written only by datasets with extended queries
     (``query_wanted`` is then set); other records read as ``query_type = "caption"``,
     ``pairing = "random"``, so every record answers them. ``receivers``: the further
     receivers of a dataset heard by several (``scene.receivers``), each an ArrayRecord
-    (same centre and yaw as ``array``).
+    (same centre and yaw as ``array``). Fields are in the JSON's key order.
     """
 
-    scene_id: str
-    split: str
-    index: int
-    seed: int | None
-    scenario: str
-    query: str
-    motion: str
-    rir_method: str
-    room: RoomRecord
-    array: ArrayRecord
-    sources: tuple[SourceRecord, ...]
-    levels: LevelsRecord
-    query_type: str = "caption"
-    query_relation: str | None = None
-    query_evidence: dict | None = None
-    query_alternatives: list | None = None
-    pairing: str = "random"
-    query_wanted: str | None = None
-    receivers: tuple = ()  # ArrayRecords of further receivers heard in the same pass
-    noise: tuple = ()  # NoiseRecords: what else the scene holds, unlabelled
-    recording: RecordingRecord | None = None  # a scene cut from a real recording (docs/recorded.md)
+    scene_id: str = key(missing="")
+    split: str = key(missing="")
+    index: int = key(missing=-1)
+    seed: int | None = key(missing=None)
+    scenario: str = key(missing="unknown")
+    query: str = key(missing="")
+    query_type: str = key("caption", omit=_plain, decode=lambda v: v or "caption")
+    query_relation: str | None = key(None, omit=_plain)
+    query_evidence: dict | None = key(None, omit=_plain)
+    query_wanted: str | None = key(None, omit=_plain)
+    pairing: str = key("random", omit=_plain, decode=lambda v: v or "random")
+    query_alternatives: list | None = key(None, omit=_plain)
+    motion: str = key(missing="unknown")
+    rir_method: str = key(missing="unknown")
+    room: RoomRecord = key(encode=_encoded, decode=RoomRecord.from_json, missing=RoomRecord())
+    array: ArrayRecord = key(encode=_encoded, decode=ArrayRecord.from_json, missing=ArrayRecord(""))
+    sources: tuple[SourceRecord, ...] = key(
+        encode=lambda v: [s.to_json() for s in v], missing=(),
+        decode=lambda v: tuple(SourceRecord.from_json(s, k) for k, s in enumerate(v or [])))
+    levels: LevelsRecord = key(encode=_encoded, decode=LevelsRecord.from_json, missing=LevelsRecord())
+    # further receivers heard in the same pass (scene.receivers), ArrayRecords
+    receivers: tuple = key((), omit=lambda r: not r.receivers, encode=lambda v: [a.to_json() for a in v],
+                           decode=lambda v: tuple(ArrayRecord.from_json(a) for a in v or ()))
+    # NoiseRecords ([noise]): what else the scene holds, unlabelled
+    noise: tuple = key((), omit=lambda r: not r.noise, encode=lambda v: [n.to_json() for n in v],
+                       decode=lambda v: tuple(NoiseRecord.from_json(n) for n in v or ()))
+    # a scene cut from a real recording (docs/recorded.md)
+    recording: RecordingRecord | None = key(None, omit=_unset("recording"), encode=_encoded,
+                                            decode=lambda v: None if v is None else RecordingRecord.from_json(v))
 
     @property
     def recorded(self) -> bool:
         return self.recording is not None
+
+    @property
+    def query_margin(self) -> float:
+        """The measured margin of a relation query (its evidence's value), NaN for a caption."""
+        return float((self.query_evidence or {}).get("value", math.nan))
 
     @property
     def target(self) -> SourceRecord:
@@ -343,36 +293,3 @@ class SceneRecord(_JsonMapping):
             return list(self.query_alternatives or ()) or [self.query]
         return answerable_queries(self.sources[0].captions, [s.captions for s in self.sources[1:]],
                                   caption_similarity) or [self.query]
-
-    def to_json(self) -> dict:
-        d = {"scene_id": self.scene_id, "split": self.split, "index": self.index, "seed": self.seed,
-             "scenario": self.scenario, "query": self.query}
-        if self.extended:
-            d.update(query_type=self.query_type, query_relation=self.query_relation,
-                     query_evidence=self.query_evidence, query_wanted=self.query_wanted, pairing=self.pairing,
-                     query_alternatives=self.query_alternatives)
-        d.update(motion=self.motion, rir_method=self.rir_method, room=self.room.to_json(), array=self.array.to_json(),
-                 sources=[s.to_json() for s in self.sources], levels=self.levels.to_json())
-        if self.receivers:  # only with scene.receivers: other records keep format 1's bytes
-            d["receivers"] = [r.to_json() for r in self.receivers]
-        if self.noise:  # only with [noise]
-            d["noise"] = [n.to_json() for n in self.noise]
-        if self.recording is not None:  # recorded scenes only
-            d["recording"] = self.recording.to_json()
-        return d
-
-    @classmethod
-    def from_json(cls, d: dict) -> "SceneRecord":
-        """Parse a record; keys a record lacks take their 'unknown' value (None, "unknown")."""
-        return cls(scene_id=d.get("scene_id", ""), split=d.get("split", ""), index=d.get("index", -1),
-                   seed=d.get("seed"), scenario=d.get("scenario", "unknown"), query=d.get("query", ""),
-                   motion=d.get("motion", "unknown"), rir_method=d.get("rir_method", "unknown"),
-                   room=RoomRecord.from_json(d.get("room")), array=ArrayRecord.from_json(d.get("array")),
-                   sources=tuple(SourceRecord.from_json(s, k) for k, s in enumerate(d.get("sources") or [])),
-                   levels=LevelsRecord.from_json(d.get("levels")), query_type=d.get("query_type") or "caption",
-                   query_relation=d.get("query_relation"), query_evidence=d.get("query_evidence"),
-                   query_alternatives=d.get("query_alternatives"), pairing=d.get("pairing") or "random",
-                   query_wanted=d.get("query_wanted"),
-                   receivers=tuple(ArrayRecord.from_json(r) for r in d.get("receivers") or ()),
-                   noise=tuple(NoiseRecord.from_json(n) for n in d.get("noise") or ()),
-                   recording=None if d.get("recording") is None else RecordingRecord.from_json(d["recording"]))
