@@ -128,7 +128,7 @@ def test_layout_problems_are_one_line(tmp_path, demo_recordings):
     evaluation = tmp_path / "eval"
     shutil.copytree(root / "foa_dev", evaluation / "foa_eval")
     with pytest.raises(ConfigError, match="has no labels .metadata_eval/ is missing.: an evaluation set without "
-                                          "metadata cannot be a test set"):
+                                          "labels cannot be a test set"):
         find_recordings(str(evaluation), "foa")
     with pytest.raises(ConfigError, match="recorded dataset folder .* not found"):
         find_recordings(str(tmp_path / "nowhere"), "foa")
@@ -156,10 +156,14 @@ def test_an_ontology_file_names_classes_and_their_captions(tmp_path):
     for text, needle in (("idx,name\n", "the first row must be the header index,name,captions"),
                          ("index,name,captions\nx,cat,A cat meows\n", "class index 'x' is not a whole number"),
                          ("index,name,captions\n1,cat,\n", "needs an index >= 0, a name and at least one caption"),
-                         ("index,name,captions\n1,cat,meow\n1,dog,bark\n", "class index 1 is given twice")):
+                         ("index,name,captions\n1,cat,meow\n1,dog,bark\n", "class index 1 is given twice"),
+                         ("index,name,captions\n0,woman,A person speaks\n1,man,A Person speaks\n",
+                          "the caption 'A Person speaks' is given to classes 0 and 1; a query must name one class")):
         csv_file.write_text(text)
         with pytest.raises(ConfigError, match=needle):
             read_ontology(str(csv_file))
+    with pytest.raises(ConfigError, match="is a folder; give a CSV"):
+        read_ontology(str(tmp_path))
 
 
 def test_every_built_in_class_has_several_wordings_and_no_wording_serves_two_classes():
@@ -189,3 +193,53 @@ def test_copies_as_people_make_them_are_read(tmp_path, demo_recordings):
                                                      "fold3_room1_mix001.wav", "fold3_room2_mix002.wav"]
     lab = read_labels(str(meta), STARSS23, STARSS)
     assert lab.frame[0] == 0 and len(lab.frame) > 100
+
+
+def test_a_source_appearing_far_from_the_others_is_a_source_of_its_own(tmp_path):
+    """Two music sources, both source 0: A at 120 deg from frame 0, B at -60 deg from frame
+    20 (while A plays); A stops at 50, B goes on. Each keeps its own track."""
+    rows = [f"{f},8,0,120,0" for f in range(50)] + [f"{f},8,0,-60,0" for f in range(20, 80)]
+    srcs = window_sources(read_labels(_csv(tmp_path, "\n".join(rows) + "\n"), STARSS23, STARSS), 0, 100)
+    tracks = {(float(np.nanmin(s.azimuth)), float(np.nanmax(s.azimuth))): np.flatnonzero(s.active) for s in srcs}
+    assert set(tracks) == {(120.0, 120.0), (-60.0, -60.0)}
+    assert tracks[120.0, 120.0].tolist() == list(range(50)) and tracks[-60.0, -60.0].tolist() == list(range(20, 80))
+
+
+def test_a_row_given_twice_is_one_annotation(tmp_path):
+    text = "0,1,1,30,0\n1,1,1,30,0\n"
+    lab = read_labels(_csv(tmp_path, text + text), STARSS23, STARSS)
+    assert lab.frame.tolist() == [0, 1]
+    assert len(window_sources(lab, 0, 10)) == 1
+
+
+def test_a_number_beyond_any_label_file_is_refused(tmp_path):
+    with pytest.raises(ConfigError, match=r":1: frame 99999999999999999999999 is out of range"):
+        read_labels(_csv(tmp_path, "99999999999999999999999,5,0,10,10\n"), STARSS23, STARSS)
+
+
+def test_a_label_file_without_its_recording_and_folders_one_level_off(tmp_path, demo_recordings):
+    root = tmp_path / "starss"
+    shutil.copytree(demo_recordings, root)
+    os.remove(root / "foa_dev" / "dev-test-sony" / "fold4_room3_mix003.wav")
+    with pytest.raises(ConfigError, match=r"fold4_room3_mix003.csv has no recording .* a download cut short"):
+        find_recordings(str(root), "foa")
+    with pytest.raises(ConfigError, match="is a folder inside a DCASE-layout dataset: give the folder that holds "
+                                          "foa_dev/"):
+        find_recordings(str(root / "foa_dev"), "foa")
+    with pytest.raises(ConfigError, match="holds no foa_dev/ itself; .*starss holds it: give that folder"):
+        find_recordings(str(tmp_path), "foa")
+    # labels of another edition beside the audio: named
+    os.rename(root / "metadata_dev", root / "metadata_dev_2024")
+    with pytest.raises(ConfigError, match=r"has no labels .metadata_dev/ is missing.: .*metadata_dev_2024/: rename"):
+        find_recordings(str(root), "foa")
+
+
+def test_upper_case_names_and_a_link_back_up_are_read_once(tmp_path, demo_recordings):
+    root = tmp_path / "starss"
+    shutil.copytree(demo_recordings, root)
+    meta = root / "metadata_dev" / "dev-test-sony"
+    os.rename(meta / "fold4_room3_mix003.csv", meta / "FOLD4_ROOM3_MIX003.CSV")
+    os.symlink("..", root / "foa_dev" / "dev-test-sony" / "loop")
+    os.symlink("..", meta / "loop")
+    recs = find_recordings(str(root), "foa")
+    assert len(recs) == 4 and recs[0].metadata.endswith("FOLD4_ROOM3_MIX003.CSV")

@@ -9,6 +9,7 @@ import csv
 import json
 import os
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -193,18 +194,28 @@ def _tiny_starss(root, seconds: float = 12.0, rate: int = FS, channels: int = 4,
 
 @pytest.mark.parametrize("case,needles", [
     ("wav without csv", ["fold4_room1_mix001.wav has no label file"]),
+    ("csv without wav", ["fold4_room1_mix002.csv has no recording", "a download cut short"]),
     ("row of four", ["fold4_room1_mix001.csv:3: a row of 4 fields", "5 or 6 whole numbers"]),
     ("not a number", ["fold4_room1_mix001.csv:3: azimuth '3O' is not a whole number"]),
     ("class outside", ["fold4_room1_mix001.csv:3: class 20 is not in the ontology"]),
     ("azimuth outside", ["fold4_room1_mix001.csv:3: azimuth 200 is outside [-180, 180]"]),
     ("wrong rate", ["is 16000 Hz but the scenes are audio.fs = 24000 Hz"]),
     ("wrong channels", ["has 2 channels; scene.format = \"foa\" has 4"]),
+    ("no samples", ["holds no samples"]),
     ("window longer", ["the window (audio.duration = 10 s) is longer than the recording (6 s)"]),
-    ("eval only", ["an evaluation set without metadata cannot be a test set"]),
+    ("labels past the end", ["labels 19.9 s but", "is 12 s long: the recording is cut short"]),
+    ("eval only", ["an evaluation set without labels cannot be a test set"]),
+    ("hop not whole", ["recorded.hop 0.15 s is not a whole number of label frames"]),
+    ("not a recorded format", ["recorded datasets are distributed as foa (foa_dev/), tetra (mic_dev/), stereo "
+                               "(stereo_dev/); 'mic4' is not one"]),
+    ("min_active longer", ["recorded.min_active 20 s is longer than the window"]),
+    ("rendered-only key", ["scene.query shapes rendered scenes"]),
+    ("no decidable relation", ["none of ['loudest'] can be decided on a recording"]),
+    ("splits share", ["splits train and test both take foa_dev/dev-test-sony/fold4_room1_mix001.wav"]),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, case, needles):
     rows = [f"{f},0,1,30,0" for f in range(100)]
-    kw = {}
+    kw, sets, splits = {}, [], ["--split", "train=0"]
     if case == "row of four":
         rows[2] = "2,0,1,30"
     elif case == "not a number":
@@ -217,17 +228,31 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, case, needles):
         kw["rate"] = 16000
     elif case == "wrong channels":
         kw["channels"] = 2
+    elif case == "no samples":
+        kw["seconds"] = 0.0
     elif case == "window longer":
         kw["seconds"] = 6.0
+    elif case == "labels past the end":
+        rows += [f"{f},0,1,30,0" for f in range(100, 200)]
+    sets = {"hop not whole": ["recorded.hop=0.15"], "not a recorded format": ['scene.format="mic4"'],
+            "min_active longer": ["recorded.min_active=20"], "rendered-only key": ['scene.query="relational"'],
+            "no decidable relation": ['scene.relations=["loudest"]'],
+            "splits share": ["splits.train.folds=[4]"]}.get(case, [])
+    if case == "splits share":
+        splits = ["--split", "train=5"]
     root = _tiny_starss(tmp_path / "starss", rows=rows, **kw)
+    meta_dir = os.path.join(root, "metadata_dev", "dev-test-sony")
     if case == "wav without csv":
-        os.remove(os.path.join(root, "metadata_dev", "dev-test-sony", "fold4_room1_mix001.csv"))
+        os.remove(os.path.join(meta_dir, "fold4_room1_mix001.csv"))
+    if case == "csv without wav":
+        shutil.copy(os.path.join(meta_dir, "fold4_room1_mix001.csv"), os.path.join(meta_dir, "fold4_room1_mix002.csv"))
     if case == "eval only":
         os.rename(os.path.join(root, "foa_dev"), os.path.join(root, "foa_eval"))
         shutil.rmtree(os.path.join(root, "metadata_dev"))
     cli = InProcessCli(capsys)
+    args = ["--preset", "starss23", "--corpus-dir", root, *splits, *[a for s in sets for a in ("--set", s)]]
     for cmd in (["generate", "--out", tmp_path / "out", "--quiet"], ["check"]):
-        line = cli.refused(*cmd, "--preset", "starss23", "--corpus-dir", root, "--split", "train=0")
+        line = cli.refused(*cmd, *args)
         for n in needles:
             assert n in line, line
     assert not os.path.exists(tmp_path / "out" / "dataset.json")
@@ -327,3 +352,47 @@ def test_the_torch_dataset_serves_recorded_scenes(made):
     active = item["active"][0].numpy()
     assert np.isfinite(item["azimuth"][0].numpy()[active]).all()
     assert np.isnan(item["azimuth"][0].numpy()[~active]).all()
+
+
+def test_the_dcase2025_stereo_set_reads_azimuth_and_distance_and_verifies(demo_recordings, tmp_path, tsel_cli):
+    """The stereo set's layout (stereo_dev/, rows frame,class,source,azimuth,distance,onscreen),
+    made here from the stand-in's FOA (L = W + Y, R = W - Y; azimuth folded to the front as
+    the set's are): elevation is not labelled, and verify judges the lateral angle."""
+    from tsel_data.tools.verify import fold_front_back
+
+    root = tmp_path / "stereo-set"
+    for folder in ("dev-train-sony", "dev-test-sony"):
+        (root / "stereo_dev" / folder).mkdir(parents=True)
+        (root / "metadata_dev" / folder).mkdir(parents=True)
+        for wav in Path(demo_recordings, "foa_dev", folder).iterdir():
+            x, fs = sf.read(wav, dtype="float32")
+            sf.write(root / "stereo_dev" / folder / wav.name, np.stack([x[:, 0] + x[:, 1], x[:, 0] - x[:, 1]], 1), fs)
+            rows = _rows(demo_recordings, f"metadata_dev/{folder}/{wav.stem}.csv")
+            with open(root / "metadata_dev" / folder / f"{wav.stem}.csv", "w") as f:
+                for r in rows:
+                    f.write(f"{r[0]},{r[1]},{r[2]},{int(round(float(fold_front_back(r[3]))))},150,1\n")
+    out = tmp_path / "ds"
+    tsel_cli.ok("generate", "--preset", "dcase2025-stereo", "--corpus-dir", root, "--out", out, "--quiet")
+    with open_dataset(str(out), "test") as ds:
+        s = ds[0]
+        assert s.format == "stereo" and s.audio.shape == (2, 5 * FS) and s.n_frames == 50
+        assert np.isnan(s.elevation).all() and np.nanmax(s.distance) == pytest.approx(1.5)
+    code, text, _ = tsel_cli.run("verify", out, "--json")
+    rates = [v["rate"] for v in json.loads(text)["splits"].values() if v["tested"]]
+    assert code == 0 and rates and all(r > 0.5 for r in rates)
+
+
+def test_a_rebuild_says_which_scenes_labels_that_changed_can_no_longer_make(made, tmp_path, tsel_cli):
+    cfg, out = made
+    rel = tmp_path / "release"
+    tsel_cli.ok("export", "recipes", out, "--out", rel, "--split", "test")
+    copy = tmp_path / "copy"
+    shutil.copytree(cfg.corpus.dir, copy)
+    meta = copy / "metadata_dev" / "dev-test-sony" / "fold4_room3_mix003.csv"
+    meta.write_text("".join(line for line in meta.read_text().splitlines(keepends=True)
+                            if line.split(",")[1] != "10"))  # the running tap is no longer labelled
+    tsel_cli.ok("generate", "--from", rel, "--corpus-dir", copy, "--out", tmp_path / "again", "--quiet")
+    scenes = json.load(open(tmp_path / "again" / "rebuild.json"))["scenes"]
+    gone = [s for s in scenes if s["status"] == "not-buildable"]
+    assert gone and all("no longer labels source (10, 0, 0)" in s["why"] for s in gone)
+    assert {s["status"] for s in scenes} - {"not-buildable"} <= {"identical", "differs"}

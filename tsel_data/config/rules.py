@@ -21,12 +21,14 @@ from dataclasses import fields
 from ..acoustics.metrics import sabine_min_rt60
 from ..choices import LevelModel, Pairing, QueryType, RecordedSet, Relation, SimilarityMeasure, values
 from ..errors import ConfigError, GeometryError
-from ..receivers import canonical, receiver
+from ..receivers import RECEIVERS, canonical, receiver
 from ..scene.distributions import Dist
+from ..scene.queries import RELATIONS
 from .receiver import array_poses, receiver_problems
 from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
 
 MAX_NUMBER = 1e9  # larger config numbers are typos (seeds excepted)
+RELATION_NAMES = values(Relation)
 SPLIT_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 
 
@@ -250,7 +252,6 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
     return out
 
 
-RECORDED_FOLDERS = ("foa", "mic", "stereo")  # the audio folders of the DCASE layout (a receiver's export_folder)
 RECORDED_COLUMNS = ("frame", "class", "source", "azimuth", "elevation", "distance", "ignore")
 
 
@@ -271,9 +272,30 @@ def _recorded_problems(cfg: Config, where: str) -> list[ConfigError]:
     if noisy:
         out.append(ConfigError(f"{at(where, 'noise.' + noisy[0])}: a recording holds the room's own noise; "
                                f"[noise] does not apply to recorded scenes"))
-    if canonical(cfg.scene.format) is not None and receiver(cfg.scene.format).export_folder not in RECORDED_FOLDERS:
-        out.append(ConfigError(f"{at(where, 'scene.format')}: recorded datasets are foa (foa_dev/), tetra (mic_dev/) "
-                               f"or stereo (stereo_dev/) recordings, not {cfg.scene.format!r}"))
+    if canonical(cfg.scene.format) is not None and not receiver(cfg.scene.format).recorded:
+        known = ", ".join(f"{r.name} ({r.export_folder}_dev/)" for r in RECEIVERS.values() if r.recorded)
+        out.append(ConfigError(f"{at(where, 'scene.format')}: recorded datasets are distributed as {known}; "
+                               f"{cfg.scene.format!r} is not one"))
+    frames = rec.hop / cfg.audio.label_hop if cfg.audio.label_hop > 0 else 0.0
+    if rec.hop and (frames < 1 - 1e-6 or abs(frames - round(frames)) > 1e-6):
+        out.append(ConfigError(f"{at(where, 'recorded.hop')}: recorded.hop {rec.hop:g} s is not a whole number of "
+                               f"label frames ({cfg.audio.label_hop:g} s); use 0 (the window) or e.g. "
+                               f"{max(1, round(frames)) * cfg.audio.label_hop:g}"))
+    if rec.min_active > cfg.audio.duration:
+        out.append(ConfigError(f"{at(where, 'recorded.min_active', 'audio.duration')}: recorded.min_active "
+                               f"{rec.min_active:g} s is longer than the window (audio.duration {cfg.audio.duration:g}"
+                               f" s): no source could be a target"))
+    sc, plain = cfg.scene, type(cfg.scene)()
+    rendered_only = [k for k in ("query", "pairing", "same_kind_distractors", "onset", "motion", "levels",
+                                 "interferers", "scenario") if getattr(sc, k) != getattr(plain, k)]
+    if rendered_only:
+        out.append(ConfigError(f"{at(where, 'scene.' + rendered_only[0])}: scene.{rendered_only[0]} shapes rendered "
+                               f"scenes; a recorded scene's sources, timing and query come from its recording and "
+                               f"labels (docs/recorded.md): leave it unset"))
+    if not any(RELATIONS[Relation(r)].needs != "level" for r in sc.relations if r in RELATION_NAMES):
+        out.append(ConfigError(f"{at(where, 'scene.relations')}: none of {list(sc.relations)} can be decided on a "
+                               f"recording (its sources' levels cannot be measured apart); give starts_first, "
+                               f"starts_last, heard_at, nearest, farthest or moving"))
     bad = [c for c in rec.columns if c not in RECORDED_COLUMNS]
     if bad or (rec.columns and not {"frame", "class"} <= set(rec.columns)):
         out.append(ConfigError(f"{at(where, 'recorded.columns')}: columns are named from "

@@ -95,6 +95,8 @@ def read_ontology(path: str) -> Ontology:
     """An ontology file: CSV (``index,name,captions``, a header row, captions joined by
     ``|``) or JSON (``{"INDEX": {"name": NAME, "captions": [...]}}``). ConfigError naming
     the file and row when it is not one."""
+    if os.path.isdir(path):
+        raise ConfigError(f"ontology {path} is a folder; give a CSV (index,name,captions) or a JSON file")
     if not os.path.isfile(path):
         raise ConfigError(f"ontology file {path} not found; give a CSV (index,name,captions) or a JSON file")
     try:
@@ -135,4 +137,10 @@ def read_ontology(path: str) -> Ontology:
         out[k] = SoundClass(k, name.strip(), caps)
     if not out:
         raise ConfigError(f"{path}: no classes; give at least one row index,name,captions")
+    owner: dict[str, int] = {}
+    for k, c in out.items():
+        for cap in c.captions:
+            if owner.setdefault(cap.strip().lower(), k) != k:
+                raise ConfigError(f"{path}: the caption {cap!r} is given to classes {owner[cap.strip().lower()]} and "
+                                  f"{k}; a query must name one class: word each class's captions for it alone")
     return out

@@ -37,6 +37,7 @@ from ..errors import ConfigError
 from .ontologies import STARSS, TAU_NIGENS_2020, TAU_NIGENS_2021, Ontology
 
 FRAME_HOP = 0.1  # s: every DCASE SELD label frame
+LIMIT = 2 ** 31  # a label file's numbers: frames of 100 ms over 6 years, class and source ids, centimetres
 COLUMNS = ("frame", "class", "source", "azimuth", "elevation", "distance", "ignore")
 _NAME = re.compile(r"fold(\d+)_room(\d+)_", re.IGNORECASE)
 
@@ -99,7 +100,8 @@ def find_recordings(root: str, folder: str) -> list[Recording]:
     """Every recording of ``root`` with its label CSV, sorted by path: the DCASE layout
     (``{folder}_dev/``, and ``{folder}_eval/`` when ``metadata_eval/`` is there), else
     WAVs with a CSV of the same name beside them. ConfigError, one line: no recordings, a
-    WAV without its CSV, an evaluation folder without labels."""
+    WAV without its CSV or a label file without its WAV (a download cut short), an
+    evaluation folder without labels, a folder that cannot be read."""
     if not os.path.isdir(root):
         raise ConfigError(f"recorded dataset folder {root} not found; give --corpus-dir with the dataset's folder")
     found: list[Recording] = []
@@ -107,37 +109,71 @@ def find_recordings(root: str, folder: str) -> list[Recording]:
     dcase = [(a, m) for a, m in layouts if os.path.isdir(os.path.join(root, a))]
     if dcase:
         for audio_dir, meta_dir in dcase:
-            wavs = _wavs(os.path.join(root, audio_dir))
+            wavs = _files(root, audio_dir, ".wav")
             if not os.path.isdir(os.path.join(root, meta_dir)):
                 if audio_dir.endswith("_eval") and any(d.endswith("_dev") for d, _ in dcase):
                     continue  # labels of the evaluation set are not distributed: the dev set is read
-                raise ConfigError(f"{os.path.join(root, audio_dir)} has no labels ({meta_dir}/ is missing): an "
-                                  f"evaluation set without metadata cannot be a test set; use the development set "
-                                  f"({folder}_dev/ with metadata_dev/) or add the labels")
+                others = sorted(d for d in os.listdir(root) if d.startswith("metadata") and d != meta_dir)
+                what = ("an evaluation set without labels cannot be a test set; use the development set "
+                        f"({folder}_dev/ with metadata_dev/) or add the labels" if audio_dir.endswith("_eval") else
+                        f"the labels are distributed in {meta_dir}/ beside {audio_dir}/"
+                        + (f" (this folder has {', '.join(o + '/' for o in others)}: rename the one of your "
+                           f"edition to {meta_dir}/)" if others else ""))
+                raise ConfigError(f"{os.path.join(root, audio_dir)} has no labels ({meta_dir}/ is missing): {what}")
+            metas = {os.path.splitext(m)[0].lower(): m for m in _files(root, meta_dir, ".csv")}
             for rel in wavs:
-                meta = os.path.join(meta_dir, os.path.splitext(rel)[0] + ".csv")
-                found.append(_recording(root, os.path.join(audio_dir, rel), meta))
+                stem = os.path.splitext(rel)[0]
+                meta = metas.pop(stem.lower(), stem + ".csv")
+                found.append(_recording(root, os.path.join(audio_dir, rel), os.path.join(meta_dir, meta)))
+            if metas and audio_dir.endswith("_dev"):
+                lone = os.path.join(root, meta_dir, sorted(metas.values())[0])
+                raise ConfigError(f"{lone} has no recording (expected it in {os.path.join(root, audio_dir)}/, as a "
+                                  f"WAV file of the same name): a download cut short? restore it, or remove the "
+                                  f"label file")
     else:
         if any(os.path.isdir(os.path.join(root, f"{other}_dev")) for other in ("foa", "mic", "stereo")):
             have = [f for f in ("foa", "mic", "stereo") if os.path.isdir(os.path.join(root, f"{f}_dev"))]
             raise ConfigError(f"{root} has no {folder}_dev/ but has {', '.join(f + '_dev/' for f in have)}: set "
                               f"scene.format to the receiver of those recordings (foa, tetra for mic_dev, stereo)")
-        for rel in _wavs(root):
-            found.append(_recording(root, rel, os.path.splitext(rel)[0] + ".csv"))
+        base = os.path.basename(os.path.normpath(root))
+        if base.endswith("_dev") or base.endswith("_eval"):
+            raise ConfigError(f"--corpus-dir {root} is a folder inside a DCASE-layout dataset: give the folder that "
+                              f"holds {base}/ (and metadata_dev/), {os.path.dirname(os.path.normpath(root))}")
+        nested = sorted(d for d in (os.listdir(root) if os.access(root, os.R_OK) else [])
+                        if os.path.isdir(os.path.join(root, d, f"{folder}_dev")))
+        if nested:
+            raise ConfigError(f"{root} holds no {folder}_dev/ itself; {os.path.join(root, nested[0])} holds it: give "
+                              f"that folder as --corpus-dir")
+        metas = {os.path.splitext(m)[0].lower(): m for m in _files(root, "", ".csv")}
+        for rel in _files(root, "", ".wav"):
+            stem = os.path.splitext(rel)[0]
+            found.append(_recording(root, rel, metas.get(stem.lower(), stem + ".csv")))
     if not found:
         raise ConfigError(f"no recordings in {root}: expected {folder}_dev/ and metadata_dev/ as distributed "
                           f"(docs/recorded.md), or WAV files with a CSV of the same name beside each")
     return sorted(found, key=lambda r: r.audio)
 
 
-def _wavs(top: str) -> list[str]:
-    """The WAV files below ``top`` (through linked folders), but hidden ones (``._NAME.wav``
-    of a macOS copy) and anything that is not a regular file (a FIFO would block a read)."""
-    out = []
-    for d, dirs, files in os.walk(top, followlinks=True):
+def _files(root: str, top: str, ext: str) -> list[str]:
+    """The files ending in ``ext`` (any case) below ``root/top``, relative to it, through
+    linked folders (each real folder once: a link back up is no loop), but hidden ones
+    (``._NAME.wav`` of a macOS copy) and anything that is not a regular file (a FIFO would
+    block a read). A folder that cannot be read is a ConfigError."""
+    out, seen = [], set()
+
+    def refuse(e: OSError):
+        raise ConfigError(f"cannot read {e.filename}: {e.strerror or e}; check its permissions")
+
+    start = os.path.join(root, top)
+    for d, dirs, names in os.walk(start, followlinks=True, onerror=refuse):
+        real = os.path.realpath(d)
+        if real in seen:
+            dirs[:] = []
+            continue
+        seen.add(real)
         dirs[:] = sorted(x for x in dirs if not x.startswith("."))
-        out += [os.path.relpath(os.path.join(d, f), top) for f in files
-                if f.lower().endswith(".wav") and not f.startswith(".") and os.path.isfile(os.path.join(d, f))]
+        out += [os.path.relpath(os.path.join(d, f), start) for f in names
+                if f.lower().endswith(ext) and not f.startswith(".") and os.path.isfile(os.path.join(d, f))]
     return sorted(out)
 
 
@@ -145,6 +181,9 @@ def _recording(root: str, audio: str, meta: str) -> Recording:
     if not os.path.isfile(os.path.join(root, meta)):
         raise ConfigError(f"{os.path.join(root, audio)} has no label file (expected {os.path.join(root, meta)}); "
                           f"add it or remove the recording")
+    for f in (audio, meta):
+        if not os.access(os.path.join(root, f), os.R_OK):
+            raise ConfigError(f"cannot read {os.path.join(root, f)}: permission denied; check its permissions")
     m = _NAME.search(os.path.basename(audio))
     fold, room = (int(m.group(1)), int(m.group(2))) if m else (None, None)
     return Recording(audio.replace(os.sep, "/"), meta.replace(os.sep, "/"), fold, room)
@@ -184,6 +223,7 @@ def read_labels(path: str, seld: SeldSet, ontology: Ontology | None, override: t
     widths = sorted({len(override)} if override else seld.columns)
     want = " or ".join(str(w) for w in widths)
     rows = {k: [] for k in ("frame", "class", "source", "azimuth", "elevation", "distance")}
+    seen: set = set()
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:  # a spreadsheet's byte-order mark
             lines = list(csv.reader(f))
@@ -219,11 +259,14 @@ def read_labels(path: str, seld: SeldSet, ontology: Ontology | None, override: t
                     raise ConfigError(f"{path}:{n}: {key} {text!r} is not a whole number; a label row is {want} "
                                       f"whole numbers") from None
                 parsed[key] = int(v)
+            if abs(parsed[key]) >= LIMIT:
+                raise ConfigError(f"{path}:{n}: {key} {text} is out of range (a label row's numbers are below "
+                                  f"{LIMIT:,}); the file is damaged")
         if parsed["frame"] < 0:
             raise ConfigError(f"{path}:{n}: frame {parsed['frame']} is negative; frames count from 0")
         if ontology is not None and parsed["class"] not in ontology:
-            raise ConfigError(f"{path}:{n}: class {parsed['class']} is not in the ontology (classes "
-                              f"{min(ontology)}-{max(ontology)} of {seld.name}); give your classes with "
+            raise ConfigError(f"{path}:{n}: class {parsed['class']} is not in the ontology ({len(ontology)} classes, "
+                              f"{min(ontology)}-{max(ontology)}); give the classes of these recordings with "
                               f"recorded.ontology")
         az, el = parsed["azimuth"], parsed["elevation"]
         if not (math.isnan(az) or -180 <= az <= 180):
@@ -233,7 +276,11 @@ def read_labels(path: str, seld: SeldSet, ontology: Ontology | None, override: t
             raise ConfigError(f"{path}:{n}: elevation {el} is outside [-90, 90] degrees")
         if not math.isnan(parsed["distance"]) and parsed["distance"] < 0:
             raise ConfigError(f"{path}:{n}: distance {parsed['distance']} is negative (centimetres)")
-        for k, v in parsed.items():
+        row = tuple(parsed[k] for k in rows)
+        if row in seen:
+            continue  # the same annotation twice (a file appended to itself) is one source, not two
+        seen.add(row)
+        for k, v in zip(rows, row):
             rows[k].append(v)
     az = np.array(rows["azimuth"], dtype=np.float64)
     az = np.where(az >= 180.0, az - 360.0, az)  # DCASE writes +180 for -180: ours is [-180, 180)
@@ -283,18 +330,43 @@ def window_sources(labels: Labels, start: int, frames: int) -> list[Source]:
         last: list[np.ndarray | None] = [None] * n_tracks
         for f in sorted(per_frame):
             rows_f = sorted(per_frame[f], key=lambda i: (labels.azimuth[i], labels.elevation[i], i))
-            free = list(range(n_tracks))
-            for i in rows_f:
-                u = _unit(labels.azimuth[i], labels.elevation[i])
-                known = [t for t in free if last[t] is not None and u is not None]
-                t = min(known, key=lambda t: -float(last[t] @ u)) if known else free[0]
-                free.remove(t)
+            for i, t in _assign(rows_f, labels, last).items():
                 tracks[t][:, f] = (labels.azimuth[i], labels.elevation[i], labels.distance[i], 1.0)
+                u = _unit(labels.azimuth[i], labels.elevation[i])
                 if u is not None:
                     last[t] = u
         for k, tr in enumerate(tracks):
             active = tr[3] == 1.0
             out.append(Source((cls, src, k), tr[0], tr[1], tr[2], active))
+    return out
+
+
+# a source's annotated direction moves less than this between its observations; a row
+# farther from every track is another source (a fresh track) when one is free
+MAX_STEP_DEG = 45.0
+
+
+def _assign(rows: list[int], labels: Labels, last: list) -> dict[int, int]:
+    """{row: track} for one frame's rows of one (class, source): the closest (row, track)
+    pairs first, each within MAX_STEP_DEG of the track's last direction; then the rest to
+    tracks never used (a source appearing), then to the nearest tracks left."""
+    units = {i: _unit(labels.azimuth[i], labels.elevation[i]) for i in rows}
+    pairs = sorted((float(np.degrees(np.arccos(np.clip(last[t] @ units[i], -1.0, 1.0)))), k, t, i)
+                   for k, i in enumerate(rows) for t in range(len(last))
+                   if last[t] is not None and units[i] is not None)
+    out: dict[int, int] = {}
+    for d, _, t, i in pairs:
+        if d <= MAX_STEP_DEG and i not in out and t not in out.values():
+            out[i] = t
+    for i in rows:
+        if i in out:
+            continue
+        free = [t for t in range(len(last)) if t not in out.values()]
+        fresh = [t for t in free if last[t] is None]
+        if fresh or units[i] is None:
+            out[i] = (fresh or free)[0]
+        else:
+            out[i] = min(free, key=lambda t: -float(last[t] @ units[i]))
     return out
 
 

@@ -35,7 +35,8 @@ from ..errors import DatasetError, TselError
 from ..plan.catalog import BUILTIN_DEMO, resolve_corpus_dir
 from ..plan.sampler import bank_request
 from ..plan.recorded import recorded_corpus
-from ..scene.recipe import BUILTIN_DEMO_RECORDED, RECORDED, SceneRecipe, corpus_files
+from ..render.recorded import recorded_problem
+from ..scene.recipe import BUILTIN_DEMO_RECORDED, RECORDED, Roots, SceneRecipe, corpus_files, recipe_from_dict
 from ..store.layout import Layout
 from ..store.lock import DatasetLock
 from ..store.plans import has_plan, local_roots, plan_seal, read_plan_doc
@@ -92,7 +93,7 @@ def rebuild(release_dir: str, out_dir: str, corpus_dir: str | None = None, bank:
         if cfg.room.bank:
             resolve_bank(bank_request(cfg), layout.demo_bank)  # builds the built-in one, checks any other
         clips = _clip_states(rel, corpus, cfg, progress)
-        plans, outcomes = _plan(rel, clips, missing)
+        plans, outcomes = _plan(rel, clips, missing, Roots(corpus=corpus))
         _write_plan(rel, layout, config, plans)
         render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
         finalize(out_dir)
@@ -152,8 +153,9 @@ def _clip_states(rel: Release, corpus: str, cfg, progress) -> ClipState:
     return state
 
 
-def _plan(rel: Release, clips: ClipState, policy: str) -> tuple[dict, list]:
-    """{split: recipe lines to render} and the outcomes known before rendering."""
+def _plan(rel: Release, clips: ClipState, policy: str, roots: Roots) -> tuple[dict, list]:
+    """{split: recipe lines to render} and the outcomes known before rendering (a recorded
+    scene whose recording or labels changed so that it cannot be cut: not buildable)."""
     entries = rel.clips()
     plans, outcomes = {}, []
     for split in rel.splits:
@@ -164,6 +166,12 @@ def _plan(rel: Release, clips: ClipState, policy: str) -> tuple[dict, list]:
             d = json.loads(line)
             names = [name for name, _, _ in corpus_files(d)]
             gone = [n for n in names if n in clips.missing]
+            problem = None
+            if not gone and d.get("kind") == RECORDED and any(n in clips.changed for n in names):
+                problem = recorded_problem(recipe_from_dict(d), roots)
+            if problem:
+                outcomes.append(SceneOutcome(d["scene_id"], split, "not-buildable", problem, clips=names))
+                continue
             if not gone:
                 lines.append(line)
                 outcomes.append(SceneOutcome(d["scene_id"], split, "", clips=names))

@@ -109,10 +109,17 @@ def plan_recorded(cfg: Config, corpus_dir: str, report=None) -> tuple[dict[str, 
     min_frames = int(math.ceil(cfg.recorded.min_active / FRAME_HOP - 1e-9))
     plans, summary = {}, {}
     labels_of: dict[str, Labels] = {}
+    taken: dict[str, str] = {}  # recording -> the split that took it
     for split, sp in cfg.splits.items():
         if not sp.count:
             continue
         recs = split_recordings(cfg, split, recordings)
+        shared = next((r for r in recs if r.audio in taken), None)
+        if shared is not None:
+            raise ConfigError(f"splits {taken[shared.audio]} and {split} both take {shared.audio}: a test set must "
+                              f"not hold what training heard; give each split its folds or rooms "
+                              f"(splits.NAME.folds, splits.NAME.rooms)")
+        taken.update((r.audio, split) for r in recs)
         stats = Counter()
         candidates: list[Candidate] = []
         for r in recs:
@@ -125,6 +132,10 @@ def plan_recorded(cfg: Config, corpus_dir: str, report=None) -> tuple[dict[str, 
                 labels_of[r.metadata] = read_labels(os.path.join(corpus_dir, r.metadata), seld, ontology,
                                                     tuple(cfg.recorded.columns))
             labels = labels_of[r.metadata]
+            if len(labels.frame) and labels.frame.max() >= frames + int(round(1.0 / FRAME_HOP)):
+                raise ConfigError(f"{r.metadata} labels {labels.frame.max() * FRAME_HOP:g} s but {r.audio} is "
+                                  f"{frames * FRAME_HOP:g} s long: the recording is cut short (a download that "
+                                  f"stopped?) or the labels are another recording's; restore the file")
             stats["recordings"] += 1
             for start in range(0, frames - window + 1, hop):
                 sources = window_sources(labels, start, window)
@@ -155,8 +166,8 @@ def plan_recorded(cfg: Config, corpus_dir: str, report=None) -> tuple[dict[str, 
         if report:
             line = (f"{split}: {len(lines)} recorded scenes from {stats['windows']} windows of "
                     f"{stats['recordings']} recordings ({len(candidates)} targets")
-            n_skip = sum(skipped.values())
-            report(line + (f", {n_skip} skipped: {SKIP_NO_RELATION})" if n_skip else ")"))
+            why = "; ".join(f"{n} skipped: {reason}" for reason, n in sorted(skipped.items()))
+            report(line + (f", {why})" if why else ")"))
     return plans, summary
 
 
@@ -167,6 +178,9 @@ def _audio_frames(corpus_dir: str, r: Recording, fs: int, spec) -> int:
         info = sf.info(path)
     except (RuntimeError, sf.LibsndfileError) as e:
         raise ConfigError(f"{path}: cannot read the recording ({e}); check the file") from None
+    if info.frames == 0:
+        raise ConfigError(f"{path} holds no samples (an empty or damaged file); restore it or remove it with its "
+                          f"label file")
     if info.samplerate != fs:
         raise ConfigError(f"{path} is {info.samplerate} Hz but the scenes are audio.fs = {fs} Hz; set audio.fs = "
                           f"{info.samplerate} (recorded scenes keep the recording's rate)")

@@ -69,14 +69,14 @@ FOA = ReceiverSpec(
     channel_names=("W", "Y", "Z", "X"),
     # two virtual cardioids at ±90°: ½(W ± Y) (receivers/stereo.py)
     stereo=((0.5, 0.5, 0.0, 0.0), (0.5, -0.5, 0.0, 0.0)),
-    level_channels=(0,), additive=(1.0, 0.0, 0.0, 0.0), localizer=L.INTENSITY, export_folder="foa",
+    level_channels=(0,), additive=(1.0, 0.0, 0.0, 0.0), localizer=L.INTENSITY, export_folder="foa", recorded=True,
     convention="ACN (W, Y, Z, X), SN3D",
     source="DCASE SELD FOA format (TAU-SRIR DB, STARSS23)")
 
 TETRA = ReceiverSpec(
     name="tetra", model=M.SPHERE, layout=_fixed(tetra_positions()), radius=TETRA_RADIUS, baffle="rigid",
     summary="the DCASE MIC format: 4 capsules of an Eigenmike on a 4.2 cm rigid sphere (array.baffle)",
-    channel_names=("M1", "M2", "M3", "M4"), stereo=(0, 1), aliases=("mic",),
+    channel_names=("M1", "M2", "M3", "M4"), stereo=(0, 1), aliases=("mic",), recorded=True,
     convention="DCASE MIC format: Eigenmike capsules 6, 10, 26, 22 at (azimuth, elevation) (45, 35), (-45, -35), "
                "(135, -35), (-135, 35) degrees on a 4.2 cm sphere",
     source="DCASE SELD MIC format; TAU-SRIR DB (Politis et al.)")
@@ -173,7 +173,7 @@ STEREO = ReceiverSpec(
     matrix=((1.0, 1.0, 0.0, 0.0), (1.0, -1.0, 0.0, 0.0)), aliases=("dcase-stereo",),
     summary="the DCASE 2025 task 3 stereo pair: L = W + Y, R = W - Y of first-order ambisonics (coincident "
             "cardioids at +-90 degrees)",
-    channel_names=("L", "R"), stereo=(0, 1), export_folder="stereo", ambiguity="lateral",
+    channel_names=("L", "R"), stereo=(0, 1), export_folder="stereo", ambiguity="lateral", recorded=True,
     localizer=L.MID_SIDE,
     convention="L = W + Y, R = W - Y of ACN/SN3D first-order ambisonics (DCASE 2025 task 3); azimuth phi and "
                "180 - phi sound alike, elevation is not heard: DCASE 2025 labels fold azimuth into [-90, 90] "

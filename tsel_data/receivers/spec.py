@@ -80,7 +80,9 @@ class ReceiverSpec:
     (banks, SOFA files). base, matrix: the ``matrix`` model's receiver and [C][C_base]
     mixing. localizer: how ``tsel verify`` hears it (``srp``: SRP-PHAT over capsule
     pairs; ``intensity``: the FOA intensity vector; empty: not judged, ``unjudged``
-    says why). export_folder: the DCASE layout's audio folder prefix. source: where the
+    says why). export_folder: the DCASE layout's audio folder prefix. recorded: a format
+    real SELD recordings are distributed in, read from ``{export_folder}_dev/`` of a
+    recorded dataset (docs/recorded.md). source: where the
     geometry comes from (docs). ambiguity: what the receiver cannot tell apart (docs;
     ``lateral``: it hears only the angle from the median plane, asin(sin φ cos θ), so
     verify judges that). configured: its capsules come from the config (``array.capsules``: custom).
@@ -105,6 +107,7 @@ class ReceiverSpec:
     localizer: str = Localizer.SRP
     unjudged: str = ""
     export_folder: str = "mic"
+    recorded: bool = False
     source: str = ""
     ambiguity: str = ""
     configured: bool = False

@@ -16,7 +16,7 @@ import soundfile as sf
 from ..core.digest import sha256_file
 from ..core.geometry import azimuth_difference
 from ..corpus.seld import SETS, read_labels, window_sources
-from ..errors import AudioError
+from ..errors import AudioError, TselError
 from ..receivers import mic_positions, receiver
 from ..scene.recipe import Roots
 from ..scene.recorded import RecordedRecipe
@@ -72,6 +72,26 @@ def render_recorded(recipe: RecordedRecipe, roots: Roots) -> Scene:
                  label_hop=recipe.label_hop, format=recipe.format, record=record, query_type=recipe.query_type,
                  query_relation=recipe.query_relation, pairing="recorded",
                  query_margin=float((recipe.query_evidence or {}).get("value", np.nan)))
+
+
+def recorded_problem(recipe: RecordedRecipe, roots: Roots) -> str | None:
+    """Why the recipe's scene cannot be cut from the files at ``roots`` (its recording is
+    shorter, of another rate or channel count, or its labels no longer hold its sources),
+    or None. What a rebuild from a release says scene by scene instead of failing."""
+    try:
+        info = sf.info(roots.clip(recipe.audio))
+        labels = _labels(roots.clip(recipe.metadata), recipe.dataset, tuple(recipe.columns),
+                         *_stat(roots.clip(recipe.metadata)))
+    except (RuntimeError, sf.LibsndfileError, TselError) as e:
+        return str(e)
+    if info.samplerate != recipe.fs or info.channels != len(recipe_channels(recipe)):
+        return f"{recipe.audio} is {info.samplerate} Hz, {info.channels} channels, not {recipe.fs} Hz, " \
+               f"{len(recipe_channels(recipe))}"
+    if info.frames < recipe.first_sample + recipe.n_samples:
+        return f"{recipe.audio} ends before the scene's window ({info.frames / info.samplerate:g} s)"
+    found = {s.key for s in window_sources(labels, recipe.start, recipe.frames)}
+    gone = [s.key for s in recipe.sources if s.key not in found]
+    return f"{recipe.metadata} no longer labels source {gone[0]} in the scene's window" if gone else None
 
 
 def read_window(path: str, recipe: RecordedRecipe) -> np.ndarray:

@@ -187,8 +187,9 @@ def fold_front_back(az):
 def lateral_angle(az, el):
     """The angle (deg, [-90, 90]) of a direction from the median plane, asin(sin φ cos θ):
     all a line of mics along y or a coincident left/right pair hears of it (the cone of
-    confusion); at θ = 0 it is the azimuth folded front to back."""
-    a, e = np.radians(az), np.radians(el)
+    confusion); at θ = 0 it is the azimuth folded front to back. An elevation not labelled
+    (NaN: a set that gives azimuth only, as the DCASE 2025 stereo set) is taken as 0."""
+    a, e = np.radians(az), np.radians(np.nan_to_num(np.asarray(el, dtype=np.float64)))
     return np.degrees(np.arcsin(np.clip(np.sin(a) * np.cos(e), -1.0, 1.0)))
 
 
