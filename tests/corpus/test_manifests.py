@@ -521,3 +521,10 @@ def test_plain_roundtrip_property(tmp_path, clips, data, jsonl):
     for c in got:
         assert c.captions == tuple(r[1].strip() for r in rows if r[0] == c.id)
         assert c.audio == str(tmp_path / c.id)
+
+
+def test_every_corpus_format_has_its_reader():
+    from tsel_data.choices import CorpusFormat
+    from tsel_data.corpus.manifests import READERS
+
+    assert {str(f) for f in CorpusFormat} - {"auto"} == set(READERS)

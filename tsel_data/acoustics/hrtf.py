@@ -403,7 +403,7 @@ def _mesh(hrtf: Hrtf) -> _Mesh:
 
 
 def _build_mesh(directions: np.ndarray) -> _Mesh:
-    from scipy.spatial import ConvexHull, cKDTree
+    from scipy.spatial import ConvexHull, cKDTree  # scipy.spatial: only interpolated HRTFs need it
 
     # Repeated directions would be duplicate generators for the hull and the Voronoi diagram.
     _, rep, inverse = np.unique(np.round(directions, 6), axis=0, return_index=True, return_inverse=True)
@@ -536,7 +536,7 @@ def _quadrature(mesh: _Mesh) -> np.ndarray:
         a = np.empty(len(mesh.phi))
         a[mesh.order] = 0.5 * (gaps + np.roll(gaps, 1))  # half of the gap on either side
     else:
-        from scipy.spatial import SphericalVoronoi
+        from scipy.spatial import SphericalVoronoi  # only irregular HRTF grids need it
 
         a = SphericalVoronoi(mesh.points, radius=1.0, center=np.zeros(3)).calculate_areas()
         if np.any(mesh.hole_vertex):

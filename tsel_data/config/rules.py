@@ -19,7 +19,7 @@ import re
 from dataclasses import fields
 
 from ..acoustics.metrics import sabine_min_rt60
-from ..choices import LevelModel, Pairing, QueryType, RecordedSet, Relation, SimilarityMeasure, values
+from ..choices import LevelModel, NoiseKind, Pairing, QueryType, RecordedSet, Relation, SimilarityMeasure, values
 from ..errors import ConfigError, GeometryError
 from ..receivers import RECEIVERS, canonical, receiver
 from ..scene.distributions import Dist
@@ -267,8 +267,7 @@ def _recorded_problems(cfg: Config, where: str) -> list[ConfigError]:
     if cfg.scene.receivers:
         out.append(ConfigError(f"{at(where, 'scene.receivers')}: a recording is heard by the one receiver it was "
                                f"made with (scene.format); remove scene.receivers"))
-    noisy = [k for k in ("ambience", "diffuse", "babble", "sensor")
-             if getattr(cfg.noise, k) not in ("", "none", 0)]
+    noisy = [str(k) for k in NoiseKind if getattr(cfg.noise, k) not in ("", "none", 0)]  # a kind's switch key
     if noisy:
         out.append(ConfigError(f"{at(where, 'noise.' + noisy[0])}: a recording holds the room's own noise; "
                                f"[noise] does not apply to recorded scenes"))

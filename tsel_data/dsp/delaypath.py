@@ -31,7 +31,7 @@ def farrow_coefficients() -> np.ndarray:
     """C [ORDER + 1, 2·FD_HALF + 1]: the fractional delay by μ ∈ [-1/2, 1/2] is the FIR
     K_μ[j] = Σ_q μ^q C[q, j + FD_HALF], j = -FD_HALF..FD_HALF (a Farrow structure), as
     :func:`design_farrow` designs it (stored: tsel_data/dsp/farrow_table.py)."""
-    from .farrow_table import FARROW
+    from .farrow_table import FARROW  # a table of coefficients: loaded by moving scenes only
 
     return np.array(FARROW, dtype=np.float64)
 

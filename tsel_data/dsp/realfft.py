@@ -54,7 +54,7 @@ def rfft(x, n: int | None = None, axis: int = -1, workers: int | None = None) ->
     """``scipy.fft.rfft(x, n, axis, workers=workers)``."""
     pf = _pocketfft()
     if pf is None:
-        import scipy.fft
+        import scipy.fft  # the fallback when pocketfft's own module is not there
 
         return scipy.fft.rfft(x, n, axis=axis, workers=workers)
     tmp = _real(x)
@@ -71,7 +71,7 @@ def irfft(x, n: int | None = None, axis: int = -1, workers: int | None = None) -
     """``scipy.fft.irfft(x, n, axis, workers=workers)`` (scaled by 1/n)."""
     pf = _pocketfft()
     if pf is None:
-        import scipy.fft
+        import scipy.fft  # the fallback when pocketfft's own module is not there
 
         return scipy.fft.irfft(x, n, axis=axis, workers=workers)
     tmp = _real(x)
@@ -91,7 +91,7 @@ def next_fast_len(target: int, real: bool = False) -> int:
     """``scipy.fft.next_fast_len(target, real)``."""
     pf = _pocketfft()
     if pf is None:
-        import scipy.fft
+        import scipy.fft  # the fallback when pocketfft's own module is not there
 
         return scipy.fft.next_fast_len(target, real)
     return pf.good_size(target, real)

@@ -127,7 +127,7 @@ def room_text(rec) -> str | None:
 
 def pyplot():
     # matplotlib loads in a second; only the commands that draw pay for it
-    import matplotlib
+    import matplotlib  # seconds to import: loaded only when a picture is drawn
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -227,7 +227,7 @@ def _draw_room(ax, scene, tracks, centre, yaw, dims) -> None:
 
 
 def _legend_handles(scene, room: bool):
-    from matplotlib.lines import Line2D
+    from matplotlib.lines import Line2D  # matplotlib loads only when a picture is drawn
 
     rec = scene.record
     handles = [Line2D([], [], ls="", marker="s", color="k", ms=6,

@@ -226,7 +226,7 @@ def band_limited_targets(root: str, audio: dict[str, str]) -> dict | None:
     scenes' rate: ``{"clips": n, "rates": {rate: n}, "fs": scenes' rate}``; a 16 kHz clip is
     empty above 8 kHz however it is resampled. None when the plan or the corpus is not
     there to read the headers from."""
-    import soundfile as sf
+    import soundfile as sf  # libsndfile: only the band-limit count reads headers
 
     layout = Layout(root)
     try:
@@ -328,7 +328,7 @@ def plot_stats(stats: dict, path: str, dpi: int = 100) -> str:
     """Histograms of the main quantities, one colour per split, to a PNG file. Each bar
     height is the share of the split's values in that bin (%), so splits of any size
     compare; the panel titles say what is counted."""
-    import matplotlib
+    import matplotlib  # seconds to import: only --png pays it
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
