@@ -325,7 +325,7 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
     dist = np.stack([l[2] for l in labels])
     mics = recipe.array.mics().astype(np.float32)
 
-    query, extra, margin = recipe.query, {}, float("nan")
+    query, extra = recipe.query, {}
     qp = recipe.query_plan
     if qp is not None:
         # decided on what was rendered: image levels in the mix, activity and position labels
@@ -335,7 +335,6 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
         query = d.text
         extra = dict(query_type=str(d.type), query_relation=d.relation, query_evidence=d.evidence,
                      query_alternatives=list(d.alternatives), pairing=qp.pairing, query_wanted=qp.wanted)
-        margin = d.evidence["value"] if d.evidence else float("nan")
     room, centre, yaw = _room_and_pose(files, rt60_measured, recipe.bank)
     record = SceneRecord(
         scene_id=recipe.scene_id, split=recipe.split, index=recipe.index, seed=recipe.seed,
@@ -343,16 +342,11 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
         rir_method=recipe.rir_method, room=room,
         array=ArrayRecord.of(recipe.array, centre, yaw, np.round(mics.astype(np.float64), 6).tolist()),
         sources=tuple(
-            SourceRecord(
-                role=s.role, clip_id=s.clip_id, audio=s.audio, captions=list(s.captions), spatial=s.spatial,
-                moving=s.moving, position=None if s.position is None else list(s.position),
-                path=None if not s.path else [list(kn) for kn in s.path], bank=s.bank,
-                azimuth=label_list(az[k], LABEL_DECIMALS["azimuth"]),
-                elevation=label_list(el[k], LABEL_DECIMALS["elevation"]),
-                distance=label_list(dist[k], LABEL_DECIMALS["distance"]),
-                active=active[k].tolist(), tir_db=s.tir_db, gain_db=round(db(gains[k] * norm), 3),
-                level_dbfs=round(db(levels[k] * gains[k] * norm), 3), power_db=s.power_db,
-                **({} if qp is None else {"pairing": qp.pairings[k] or "target", "caption_similarity": qp.similarity[k]}))
+            SourceRecord.of(
+                s, label_list(az[k], LABEL_DECIMALS["azimuth"]), label_list(el[k], LABEL_DECIMALS["elevation"]),
+                label_list(dist[k], LABEL_DECIMALS["distance"]), active[k].tolist(), round(db(gains[k] * norm), 3),
+                round(db(levels[k] * gains[k] * norm), 3),
+                *(() if qp is None else (qp.pairings[k] or "target", qp.similarity[k])))
             for k, s in enumerate(recipe.sources)),
         levels=LevelsRecord(recipe.target_level_dbfs, round(peak * norm, 6), round(db(norm), 3)),
         receivers=tuple(ArrayRecord.of(p, centre, yaw, np.round(p.mics(), 6).tolist()) for p in recipe.receivers),
@@ -363,9 +357,7 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
     others = {p.format: (m, p.mics().astype(np.float32)) for p, (_, m) in zip(recipe.receivers, parts.others)}
     noise = {n.kind: (n.snr_db, n.level_dbfs) for n in record.noise}
     return Scene(recipe.scene_id, recipe.split, recipe.index, query, mix, az, el, dist, active, mics, recipe.fs,
-                 recipe.label_hop, recipe.array.format, record, query_type=record.query_type,
-                 query_relation=record.query_relation, pairing=record.pairing, query_margin=margin, receivers=others,
-                 noise=noise)
+                 recipe.label_hop, recipe.array.format, record, receivers=others, noise=noise)
 
 
 def _noise_record(item, nz, norm: float, level_ch) -> NoiseRecord:

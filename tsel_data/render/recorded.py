@@ -69,9 +69,7 @@ def render_recorded(recipe: RecordedRecipe, roots: Roots) -> Scene:
     record = _record(recipe, path, meta, srcs, az, el, dist, active, mics)
     return Scene(scene_id=recipe.scene_id, split=recipe.split, index=recipe.index, query=recipe.query, audio=audio,
                  azimuth=az, elevation=el, distance=dist, active=active, mic_positions=mics, fs=recipe.fs,
-                 label_hop=recipe.label_hop, format=recipe.format, record=record, query_type=recipe.query_type,
-                 query_relation=recipe.query_relation, pairing="recorded",
-                 query_margin=float((recipe.query_evidence or {}).get("value", np.nan)))
+                 label_hop=recipe.label_hop, format=recipe.format, record=record)
 
 
 def recorded_problem(recipe: RecordedRecipe, roots: Roots) -> str | None:

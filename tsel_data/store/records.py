@@ -150,6 +150,19 @@ class SourceRecord(JsonFields, _JsonMapping):
     power_db: float | None = key(None, omit=_unset("power_db"))  # levels that follow distance only
 
     @classmethod
+    def of(cls, source, azimuth: list, elevation: list, distance: list, active: list, gain_db: float,
+           level_dbfs: float, pairing: str | None = None, caption_similarity: float | None = None) -> "SourceRecord":
+        """The record of a recipe's :class:`~tsel_data.scene.recipe.Source` (its clip, placement
+        and requested levels, as planned) with what was rendered: labels, gain and level."""
+        return cls(role=source.role, clip_id=source.clip_id, audio=source.audio, captions=list(source.captions),
+                   spatial=source.spatial, moving=source.moving,
+                   position=None if source.position is None else list(source.position),
+                   path=None if not source.path else [list(kn) for kn in source.path], bank=source.bank,
+                   azimuth=azimuth, elevation=elevation, distance=distance, active=active, tir_db=source.tir_db,
+                   gain_db=gain_db, level_dbfs=level_dbfs, pairing=pairing, caption_similarity=caption_similarity,
+                   power_db=source.power_db)
+
+    @classmethod
     def from_json(cls, d: dict, k: int = 0) -> "SourceRecord":
         """``k``: the source's place in its scene (a record without roles: 0 is the target)."""
         return super().from_json({**d, "role": d.get("role") or ("target" if k == 0 else "interferer")})

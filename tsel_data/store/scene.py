@@ -56,6 +56,13 @@ class Scene:
     receivers: dict | None = None
     noise: dict | None = None
 
+    def __post_init__(self):
+        # the query facts are the record's; kept flat for readers opened without records
+        rec = self.record
+        if rec is not None:
+            self.query_type, self.query_relation, self.pairing = rec.query_type, rec.query_relation, rec.pairing
+            self.query_margin = rec.query_margin
+
     @property
     def n_sources(self) -> int:
         return int(self.azimuth.shape[0])

@@ -42,10 +42,11 @@ QUERY_COLUMNS = {"query_type": "caption", "query_relation": "", "query_margin": 
 def _query_row(s: Scene) -> dict | None:
     """A scene's values of the shard's query columns (:data:`QUERY_COLUMNS`), or None for
     a scene of default queries."""
-    if s.record is None or not s.record.extended:
+    rec = s.record
+    if rec is None or not rec.extended:
         return None
-    return {"query_type": s.query_type, "query_relation": s.query_relation or "", "query_margin": s.query_margin,
-            "pairing": s.pairing}
+    return {"query_type": rec.query_type, "query_relation": rec.query_relation or "", "query_margin": rec.query_margin,
+            "pairing": rec.pairing}
 
 
 def write_shard(out_dir: str, split: str, shard: int, scenes: list[Scene], attrs: dict,
