@@ -50,6 +50,16 @@ def key(default=MISSING, *, default_factory=MISSING, omit=None, encode=None, dec
     return field(default=default, metadata=meta)
 
 
+def unset(name: str):
+    """``omit`` of a key written only when its field is set: a later addition, so what was
+    written without it keeps its bytes."""
+    return lambda obj: getattr(obj, name) is None
+
+
+def rows(v) -> list:
+    return [list(x) for x in v]
+
+
 class JsonFields:
     """``to_json``/``from_json`` derived from a dataclass's fields: key order is field
     order, a field declared with :func:`key` may be optional or converted. Subclasses are
@@ -85,3 +95,11 @@ class JsonFields:
             elif missing is not _NONE:
                 kw[name] = missing
         return cls(**kw)
+
+    # recipes' names for the same pair (a recipe's ``to_json`` is its JSON line)
+    def to_dict(self) -> dict:
+        return self.to_json()
+
+    @classmethod
+    def from_dict(cls, d: dict | None):
+        return cls.from_json(d)

@@ -8,11 +8,16 @@ import numpy as np
 
 from ..choices import Baffle, ReceiverModel
 from ..core.geometry import Vec3
+from ..core.jsonable import JsonFields, key, rows, unset
 from .registry import receiver
 
 
+def _floats(v):
+    return None if v is None else tuple(tuple(float(x) for x in row) for row in v)
+
+
 @dataclass(frozen=True)
-class ArrayPose:
+class ArrayPose(JsonFields):
     """A receiver in a room: which one, where and how it is turned.
 
     format: the receiver's name (``scene.format``; :mod:`tsel_data.receivers.builtin`).
@@ -29,15 +34,16 @@ class ArrayPose:
     """
 
     format: str
-    centre: Vec3
-    yaw: float
+    centre: Vec3 = key(encode=list, decode=tuple)
+    yaw: float = key()
     side: float | None = None
-    capsules: tuple | None = None
-    patterns: tuple | None = None
-    orientations: tuple | None = None
-    baffle: str | None = None
-    hrtf: str | None = None
-    interpolation: str | None = None
+    capsules: tuple | None = key(None, omit=unset("capsules"), encode=rows, decode=lambda v: _floats(v))
+    patterns: tuple | None = key(None, omit=unset("patterns"), encode=list,
+                                 decode=lambda v: None if v is None else tuple(v))
+    orientations: tuple | None = key(None, omit=unset("orientations"), encode=rows, decode=lambda v: _floats(v))
+    baffle: str | None = key(None, omit=unset("baffle"))
+    hrtf: str | None = key(None, omit=unset("hrtf"))
+    interpolation: str | None = key(None, omit=unset("interpolation"))
 
     @property
     def spec(self):
@@ -85,27 +91,8 @@ class ArrayPose:
         return [(x0 + c * x - s * y, y0 + s * x + c * y, z0 + z) for x, y, z in local]
 
     # --- recipes --------------------------------------------------------------------
-    def to_dict(self) -> dict:
-        d = {"format": self.format, "centre": list(self.centre), "yaw": self.yaw, "side": self.side}
-        for key in _OPTIONAL:
-            v = getattr(self, key)
-            if v is not None:
-                d[key] = [list(x) for x in v] if key in ("capsules", "orientations") else (
-                    list(v) if isinstance(v, tuple) else v)
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "ArrayPose":
-        kw = {k: d.get(k) for k in _OPTIONAL if d.get(k) is not None}
-        for key in ("capsules", "orientations"):
-            if key in kw:
-                kw[key] = tuple(tuple(float(v) for v in row) for row in kw[key])
-        if "patterns" in kw:
-            kw["patterns"] = tuple(kw["patterns"])
-        return cls(d["format"], tuple(d["centre"]), d["yaw"], d.get("side"), **kw)
 
 
-_OPTIONAL = ("capsules", "patterns", "orientations", "baffle", "hrtf", "interpolation")
 
 
 def array_radius(pose) -> float:

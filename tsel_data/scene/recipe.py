@@ -20,6 +20,7 @@ import numpy as np
 
 from ..choices import Role, Scenario, Spatial, values
 from ..core.geometry import Room, interpolate_positions, room_to_array
+from ..core.jsonable import JsonFields, key, rows, unset
 from ..errors import DatasetError, GeometryError
 from ..receivers import RECEIVERS, ArrayPose
 from .recorded import KIND as RECORDED, RecordedRecipe
@@ -72,7 +73,7 @@ class BankRef:
 
 
 @dataclass(frozen=True)
-class Source:
+class Source(JsonFields):
     """One sound event of a scene.
 
     role: ``target`` or ``interferer``. spatial: ``directional`` (rendered through the
@@ -90,45 +91,22 @@ class Source:
     role: str
     clip_id: str
     audio: str
-    captions: tuple[str, ...]
+    captions: tuple[str, ...] = key(encode=list, decode=tuple)
     spatial: str = Spatial.DIRECTIONAL
     offset: float = 0.0
-    position: tuple[float, float, float] | None = None
-    path: tuple[tuple[float, float, float, float], ...] | None = None
-    bank: BankWalk | None = None
+    position: tuple[float, float, float] | None = key(None, encode=lambda v: None if v is None else list(v),
+                                                      decode=lambda v: None if v is None else tuple(v))
+    path: tuple[tuple[float, float, float, float], ...] | None = key(
+        None, encode=lambda v: rows(v) if v else None, decode=lambda v: tuple(tuple(k) for k in v) if v else v)
+    bank: BankWalk | None = key(None, encode=lambda b: None if b is None else b.to_dict(),
+                                decode=lambda v: None if v is None else BankWalk.from_dict(v))
     tir_db: float | None = None
-    start: float = 0.0
-    power_db: float | None = None
+    start: float = key(0.0, omit=lambda s: not s.start)  # absent when 0: recipes without scene.onset keep their bytes
+    power_db: float | None = key(None, omit=unset("power_db"))  # levels that follow distance only
 
     @property
     def moving(self) -> bool:
         return bool(self.path) or bool(self.bank and self.bank.moving)
-
-    def to_dict(self) -> dict:
-        d = {
-            "role": self.role, "clip_id": self.clip_id, "audio": self.audio, "captions": list(self.captions),
-            "spatial": self.spatial, "offset": self.offset,
-            "position": None if self.position is None else list(self.position),
-            "path": None if not self.path else [list(k) for k in self.path],
-            "bank": None if self.bank is None else self.bank.to_dict(), "tir_db": self.tir_db,
-        }
-        if self.start:  # absent when 0: recipes without scene.onset keep their bytes
-            d["start"] = self.start
-        if self.power_db is not None:  # levels that follow distance only
-            d["power_db"] = self.power_db
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "Source":
-        d = dict(d)
-        d["captions"] = tuple(d["captions"])
-        if d.get("position") is not None:
-            d["position"] = tuple(d["position"])
-        if d.get("path"):
-            d["path"] = tuple(tuple(k) for k in d["path"])
-        if d.get("bank") is not None:
-            d["bank"] = BankWalk.from_dict(d["bank"])
-        return cls(**d)
 
     def room_points(self):
         """Every room-frame point the source occupies (a sequence of (x, y, z)), or None."""
@@ -148,7 +126,7 @@ class Source:
 
 
 @dataclass(frozen=True)
-class NoiseItem:
+class NoiseItem(JsonFields):
     """One part of what a scene hears besides its sources (``[noise]``; never labelled).
 
     kind: ``ambience`` (a recording: ``file`` named relative to ``noise.ambience``, from
@@ -161,31 +139,15 @@ class NoiseItem:
     """
 
     kind: str
-    seed: int
-    snr_db: float | None = None
-    level_dbfs: float | None = None
-    spectrum: str | None = None
-    file: str | None = None
-    offset: int | None = None
-    clips: tuple = ()
-    directions: tuple = ()
-
-    def to_dict(self) -> dict:
-        d = {"kind": self.kind, "seed": self.seed}
-        for key in ("snr_db", "level_dbfs", "spectrum", "file", "offset"):
-            if getattr(self, key) is not None:
-                d[key] = getattr(self, key)
-        if self.clips:
-            d["clips"] = [list(c) for c in self.clips]
-        if self.directions:
-            d["directions"] = [list(c) for c in self.directions]
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "NoiseItem":
-        return cls(d["kind"], int(d["seed"]), d.get("snr_db"), d.get("level_dbfs"), d.get("spectrum"), d.get("file"),
-                   d.get("offset"), tuple(tuple(c) for c in d.get("clips") or ()),
-                   tuple(tuple(c) for c in d.get("directions") or ()))
+    seed: int = key(decode=int)
+    snr_db: float | None = key(None, omit=unset("snr_db"))
+    level_dbfs: float | None = key(None, omit=unset("level_dbfs"))
+    spectrum: str | None = key(None, omit=unset("spectrum"))
+    file: str | None = key(None, omit=unset("file"))
+    offset: int | None = key(None, omit=unset("offset"))
+    clips: tuple = key((), omit=lambda n: not n.clips, encode=rows, decode=lambda v: tuple(tuple(c) for c in v or ()))
+    directions: tuple = key((), omit=lambda n: not n.directions, encode=rows,
+                            decode=lambda v: tuple(tuple(c) for c in v or ()))
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from ..corpus.captions import answerable_queries
-from ..core.jsonable import JsonFields, key
+from ..core.jsonable import JsonFields, key, unset
 from ..scene.recipe import BankWalk
 
 # Labels in the JSON are rounded: angles to 3 decimals, distances to 4, so the HDF5
@@ -57,12 +57,6 @@ class _JsonMapping:
         return self._json.keys()
 
 
-def _unset(name: str):
-    """``omit``: the key is written only when the field is set (a later addition: records
-    without it keep format 1's bytes)."""
-    return lambda r: getattr(r, name) is None
-
-
 def _encoded(v):
     return None if v is None else v.to_json()
 
@@ -97,11 +91,11 @@ class ArrayRecord(JsonFields, _JsonMapping):
     yaw: float | None = None
     side: float | None = None
     mic_positions: list | None = None
-    patterns: list | None = key(None, omit=_unset("patterns"))
-    orientations: list | None = key(None, omit=_unset("orientations"))
-    baffle: str | None = key(None, omit=_unset("baffle"))
-    hrtf: str | None = key(None, omit=_unset("hrtf"))
-    interpolation: str | None = key(None, omit=_unset("interpolation"))
+    patterns: list | None = key(None, omit=unset("patterns"))
+    orientations: list | None = key(None, omit=unset("orientations"))
+    baffle: str | None = key(None, omit=unset("baffle"))
+    hrtf: str | None = key(None, omit=unset("hrtf"))
+    interpolation: str | None = key(None, omit=unset("interpolation"))
 
     @classmethod
     def of(cls, pose, centre, yaw, mic_positions) -> "ArrayRecord":
@@ -147,7 +141,7 @@ class SourceRecord(JsonFields, _JsonMapping):
     level_dbfs: float | None = None
     pairing: str | None = key(None, omit=_no_pairing)
     caption_similarity: float | None = key(None, omit=_no_pairing)
-    power_db: float | None = key(None, omit=_unset("power_db"))  # levels that follow distance only
+    power_db: float | None = key(None, omit=unset("power_db"))  # levels that follow distance only
 
     @classmethod
     def of(cls, source, azimuth: list, elevation: list, distance: list, active: list, gain_db: float,
@@ -184,11 +178,11 @@ class NoiseRecord(JsonFields, _JsonMapping):
     kind: str = key(missing="")
     snr_db: float | None = None
     level_dbfs: float | None = None
-    file: str | None = key(None, omit=_unset("file"))
-    offset: int | None = key(None, omit=_unset("offset"))
-    spectrum: str | None = key(None, omit=_unset("spectrum"))
-    clips: list | None = key(None, omit=_unset("clips"))
-    directions: list | None = key(None, omit=_unset("directions"))
+    file: str | None = key(None, omit=unset("file"))
+    offset: int | None = key(None, omit=unset("offset"))
+    spectrum: str | None = key(None, omit=unset("spectrum"))
+    clips: list | None = key(None, omit=unset("clips"))
+    directions: list | None = key(None, omit=unset("directions"))
 
     @classmethod
     def of(cls, item, snr_db: float | None, level_dbfs: float) -> "NoiseRecord":
@@ -275,7 +269,7 @@ class SceneRecord(JsonFields, _JsonMapping):
     noise: tuple = key((), omit=lambda r: not r.noise, encode=lambda v: [n.to_json() for n in v],
                        decode=lambda v: tuple(NoiseRecord.from_json(n) for n in v or ()))
     # a scene cut from a real recording (docs/recorded.md)
-    recording: RecordingRecord | None = key(None, omit=_unset("recording"), encode=_encoded,
+    recording: RecordingRecord | None = key(None, omit=unset("recording"), encode=_encoded,
                                             decode=lambda v: None if v is None else RecordingRecord.from_json(v))
 
     @property
