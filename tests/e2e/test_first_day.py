@@ -178,3 +178,15 @@ def test_manifests_clip_checks_and_planning_show_progress(demo_corpus, tmp_path,
     err = capsys.readouterr().err
     for what in ("read train", "check train", "plan train", "plan test"):
         assert what in err, (what, err)
+
+
+def test_check_takes_a_generate_command_line_as_it_is(demo_corpus, tmp_path, capsys):
+    """docs/commands/check.md: paste the generate command, change the verb."""
+    line = ["--preset", "demo", "--corpus-dir", demo_corpus, "--split", "train=2", "--split", "val=0", "--split",
+            "test=0", "--out", str(tmp_path / "ds"), "--workers", "1", "--quiet", "--resume", "--grow", "--force",
+            "--allow-reuse", "--executor", "local", "--set", "audio.duration=1.0"]
+    code, out, err = tsel(capsys, "check", *line)
+    assert code == 0, err
+    assert "note: --resume, --grow, --force, --allow-reuse, --executor steer(s) a run, not what it makes" in err
+    assert "train: 2 scenes" in out or "2 scenes planned" in out
+    assert not (tmp_path / "ds").exists()  # a check writes nothing

@@ -7,7 +7,7 @@ import click
 
 from ..errors import TselError
 from . import say
-from .options import config_options, load, manifest_option, worker_count
+from .options import RUN_ONLY, config_options, load, manifest_option, run_only_options, worker_count
 
 SHOW = 20  # problems printed per kind; the rest are counted (--json lists them all)
 
@@ -21,10 +21,11 @@ SHOW = 20  # problems printed per kind; the rest are counted (--json lists them 
 @click.option("--no-plan", is_flag=True, help="With a config: skip sampling every scene in memory.")
 @click.option("--no-audio", is_flag=True, help="With DIR: skip checking every audio sample is finite.")
 @click.option("--json", "as_json", is_flag=True, help="Print the full report as JSON.")
-@click.option("--release", type=click.Path(file_okay=False),
+@click.option("--release", "release_dir", type=click.Path(file_okay=False),
               help="With DIR: hold it against this recipe release, scene by scene (audio, labels, record).")
 @manifest_option
-def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, release, **config_opts):
+@run_only_options
+def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, release_dir, **opts):
     """Check a config and everything it reads before rendering (`tsel check --preset/--config ...`),
     or verify a finished dataset (`tsel check DIR`: shards, sha256, HDF5 vs JSON, counts).
 
@@ -33,6 +34,16 @@ def check_cmd(dataset_dir, out_dir, workers, no_plan, no_audio, as_json, release
     """
     from ..job.preflight import check_config
     from ..store.check import check_dataset
+
+    run = {k: opts.pop(k) for k in RUN_ONLY}
+    config_opts = opts
+    release = release_dir
+    if not dataset_dir and run["release"]:
+        raise TselError("--from rebuilds a release, which `tsel check` does not: check the rebuilt dataset with "
+                        "`tsel check DIR --release REL`")
+    steering = [f"--{k.replace('_', '-')}" for k in RUN_ONLY if k not in ("release", "quiet") and run[k]]
+    if steering:
+        click.echo(f"note: {', '.join(steering)} steer(s) a run, not what it makes: checked as without", err=True)
 
     if dataset_dir and (config_opts.get("preset") or config_opts.get("config_path") or config_opts.get("manifest")):
         raise TselError("give either a dataset folder or --preset/--config, not both")

@@ -5,7 +5,7 @@ import os
 
 import click
 
-from ..choices import Executor, values
+from ..choices import Executor, MissingClipPolicy, values
 from ..errors import TselError
 from . import say
 
@@ -60,6 +60,30 @@ def load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validat
         counts[name] = int(count)
     return load_config(preset=preset, path=config_path, overrides=list(overrides), corpus_dir=corpus_dir,
                        seed=seed, splits=counts, bank=bank, validate=validate, manifest=manifest)
+
+
+# `tsel generate` options that steer a run, not what it makes: `tsel check` takes them too, so
+# a generate command line can be checked as it is (docs/commands/check.md)
+RUN_ONLY = ("resume", "grow", "force", "quiet", "release", "missing", "allow_reuse", "executor", "scheduler")
+
+
+def run_only_options(f):
+    """`tsel generate`'s run options, accepted and set aside (:data:`RUN_ONLY`)."""
+    opts = [
+        click.option("--resume", is_flag=True, help="Accepted as `tsel generate` takes it; steers a run only."),
+        click.option("--grow", is_flag=True, help="Accepted as `tsel generate` takes it; steers a run only."),
+        click.option("--force", is_flag=True, help="Accepted as `tsel generate` takes it; steers a run only."),
+        click.option("--quiet", is_flag=True, help="No progress bars (they show only on a terminal anyway)."),
+        click.option("--from", "release", type=click.Path(file_okay=False), hidden=True),
+        click.option("--missing", type=click.Choice(values(MissingClipPolicy)), hidden=True),
+        click.option("--allow-reuse", is_flag=True, help="Accepted as `tsel generate` takes it; the check warns of "
+                     "reuse either way."),
+        click.option("--executor", type=click.Choice(values(Executor)), hidden=True),
+        click.option("--scheduler", hidden=True),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return f
 
 
 def worker_count(n: int) -> int:
