@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from support.configs import TINY
-from support.files import tmp_files
+from support.files import patience, tmp_files
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -247,7 +247,7 @@ def test_sigkill_at_random_moments_then_resume_gives_identical_files(demo_corpus
         workers = 2 if k % 2 == 0 else 1
         p = subprocess.Popen([sys.executable, "-c", BOOT, "generate", *args, "--out", out, "--workers", str(workers)],
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + patience(60)
         while p.poll() is None and not ready() and time.monotonic() < deadline:
             time.sleep(0.005)
         time.sleep(jitter)

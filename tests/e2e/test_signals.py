@@ -19,7 +19,7 @@ import pytest
 from support.configs import DATASETS
 
 from tsel_data.job.pipeline import finalize, generate, plan_dataset, render_shards
-from support.files import alive as _alive, children as _children, data_files, tmp_files
+from support.files import alive as _alive, children as _children, data_files, patience, tmp_files
 
 # image-source rooms that ring for about a second: a 3 s scene takes about 0.3 s here, so
 # a shard is still in flight when a test's second signal comes (hybrid rooms take 10 ms)
@@ -75,7 +75,7 @@ class Run:
             into.append(line.rstrip("\n"))
 
     def until(self, cond, what: str, timeout: float = 90.0) -> None:
-        deadline = time.monotonic() + timeout
+        deadline = time.monotonic() + patience(timeout)
         while not cond():
             assert self.p.poll() is None, f"ended before {what}: {self.p.returncode} {self.stderr}"
             assert time.monotonic() < deadline, f"never {what}: {self.stderr}"
@@ -91,12 +91,13 @@ class Run:
 
     def end(self) -> float:
         """Seconds from the first signal to the exit; fails if the run outlives STOP_WITHIN."""
+        within = patience(STOP_WITHIN)
         try:
-            self.p.wait(timeout=STOP_WITHIN)
+            self.p.wait(timeout=within)
         except subprocess.TimeoutExpired:
             left = _group(self.pgid)
             os.killpg(self.pgid, signal.SIGKILL)
-            pytest.fail(f"still running {STOP_WITHIN:.0f} s after the signal; processes {left}; {self.stderr}")
+            pytest.fail(f"still running {within:.0f} s after the signal; processes {left}; {self.stderr}")
         took = time.monotonic() - self.signalled_at
         for t in self._readers:
             t.join(5)
@@ -122,7 +123,7 @@ def _group(pgid: int) -> list[int]:
 
 
 def _assert_nothing_left(pgid: int) -> None:
-    deadline = time.monotonic() + 5.0  # multiprocessing's helper leaves once the main process is gone
+    deadline = time.monotonic() + patience(5.0)  # multiprocessing's helper leaves once the main process is gone
     while _group(pgid) and time.monotonic() < deadline:
         time.sleep(0.05)
     left = _group(pgid)

@@ -13,7 +13,7 @@ import pytest
 import soundfile as sf
 
 from support.cli import one_line_error, tsel
-from support.files import alive, children, data_files
+from support.files import alive, children, data_files, patience
 from tsel_data.config import load_config
 from tsel_data.errors import ConfigError, DatasetError
 from tsel_data.job.pipeline import finalize, generate, plan_dataset, render_shards
@@ -401,15 +401,17 @@ def test_sigterm_stops_the_workers(cfg, tmp_path):
                           cfg.corpus.dir, "--out", out, "--quiet", "--workers", "2", "--split", "train=40",
                           "--split", "val=0", "--split", "test=0", "--set", "output.shard_size=2"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.time() + 120
+    deadline = time.time() + patience(120)
     while time.time() < deadline and not children(p.pid):
         time.sleep(0.2)
     kids = children(p.pid)
     assert kids, "the pool never started"
     time.sleep(1.0)
     p.terminate()
-    p.wait(timeout=60)
-    time.sleep(1.0)
+    p.wait(timeout=patience(60))
+    gone = time.time() + patience(10)  # workers leave once they see the run is gone
+    while time.time() < gone and any(alive(k) for k in kids):
+        time.sleep(0.1)
     left = [k for k in kids if alive(k)]
     assert not left, f"workers outlived the run: {left}"
 

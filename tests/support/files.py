@@ -35,3 +35,9 @@ def alive(pid: int) -> bool:
             return f.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
     except OSError:
         return False
+
+
+def patience(seconds: float) -> float:
+    """A wait for an outcome, stretched by how busy the machine is (its load per core, at
+    least 1): a test waits for what must happen, never on how fast the machine is now."""
+    return seconds * max(1.0, os.getloadavg()[0] / (os.cpu_count() or 1))

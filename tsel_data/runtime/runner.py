@@ -7,6 +7,7 @@ every executor gives the same files, a retried task is harmless, and any schedul
 """
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import multiprocessing.connection
 import signal
@@ -18,7 +19,7 @@ from threadpoolctl import threadpool_limits
 
 from ..choices import Executor, values
 from ..errors import DatasetError, TselError
-from .dask import cluster_start
+from .dask import cluster_start, dask_quiet
 from .malloc import reuse_freed_memory
 from .pool import RemoteTraceback, _Worker, prepare_worker
 from .signals import (STOP_GRACE, Stopped, _STOP, _kill_descendants, _signals_blocked, _signals_held, _worker_stopped,
@@ -127,12 +128,14 @@ class Runner:
                 w.process.join()
             w.conn.close()
         client, cluster, self._client, self._cluster = self._client, self._cluster, None, None
-        if client is not None:
-            client.close(timeout=2 if now else 10)
-        if cluster is not None:
-            cluster.close(timeout=2 if now else 20)
-            if now and _STOP.whole_process:  # workers its nannies restarted after the kill
-                _kill_descendants()
+        stopping = _STOP.signum is not None
+        with dask_quiet() if stopping else contextlib.nullcontext():  # a stop's dropped connections are no news
+            if client is not None:
+                client.close(timeout=2 if now else 10)
+            if cluster is not None:
+                cluster.close(timeout=2 if now else 20)
+                if now and _STOP.whole_process:  # workers its nannies restarted after the kill
+                    _kill_descendants()
 
     def map_unordered(self, fn: Callable, jobs: list) -> Iterator:
         """``fn(job)`` for every job, in the order they finish. After a first signal no
