@@ -47,9 +47,14 @@ PAPER_BIBTEX = """@misc{zhao2024tsel,
   eprint = {2406.16058},
   archivePrefix = {arXiv}
 }"""
+# as CITATION.cff says (a test holds them together)
+TOOL_AUTHORS, TOOL_YEAR = "The tsel-data developers", 2026
 TOOL_BIBTEX = f"""@software{{tsel_data,
   title = {{tsel-data: datasets for text-queried target sound event localization}},
-  version = {{{__version__}}}
+  author = {{{{{TOOL_AUTHORS}}}}},
+  year = {{{TOOL_YEAR}}},
+  version = {{{__version__}}},
+  license = {{MIT}}
 }}"""
 
 LIMITS = (
