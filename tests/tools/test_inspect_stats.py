@@ -1,3 +1,4 @@
+import dataclasses
 import json
 
 import numpy as np
@@ -147,6 +148,52 @@ def test_summary_lists_every_caption(ds):
     object.__setattr__(scene.record.sources[0], "captions", [f"caption number {k}" for k in range(5)])
     text = summary(scene)
     assert all(f"caption: caption number {k}" in text for k in range(5))
+
+
+# A record's noise as the renderer writes it (render/noise.py): every kind, sensor noise set in dBFS.
+NOISE = ({"kind": "ambience", "snr_db": 12.5, "level_dbfs": -38.25, "file": "03_bahnhof/ambience_foa.wav",
+          "offset": 48000},
+         {"kind": "diffuse", "snr_db": 20.0, "level_dbfs": -45.5, "spectrum": "pink"},
+         {"kind": "babble", "snr_db": 15.25, "level_dbfs": -41.0, "clips": [["audio/a.wav", 0.0], ["audio/b.wav", 1.5]],
+          "directions": [[-87.639, 34.529], [24.115, -57.269]]},
+         {"kind": "sensor", "snr_db": None, "level_dbfs": -60.0})
+
+
+def with_noise(scene, noise=NOISE):
+    from tsel_data.store.records import NoiseRecord
+
+    scene.record = dataclasses.replace(scene.record, noise=tuple(NoiseRecord.from_json(n) for n in noise))
+    return scene
+
+
+def test_summary_shows_the_noise(ds):
+    from tsel_data.tools.inspect import summary
+
+    root, _ = ds
+    text = summary(with_noise(find_scene(root, "train/0")))
+    head, _, rest = text.partition("noise (unlabelled):\n")
+    lines = dict((ln.split()[0], ln) for ln in rest.splitlines())
+    assert list(lines) == ["ambience", "diffuse", "babble", "sensor"]
+    assert "03_bahnhof/ambience_foa.wav from sample 48000" in lines["ambience"]
+    assert "SNR 12.5 dB" in lines["ambience"] and "level -38.2 dBFS" in lines["ambience"]
+    assert "pink spectrum" in lines["diffuse"] and "SNR 20.0 dB" in lines["diffuse"]
+    assert "2 clips" in lines["babble"] and "from (az, el) deg (-87.6, 34.5) (24.1, -57.3)" in lines["babble"]
+    assert "SNR 15.2 dB" in lines["babble"]
+    assert "level -60.0 dBFS" in lines["sensor"] and "SNR" not in lines["sensor"]  # set in dBFS, no SNR
+    assert "noise" not in summary(find_scene(root, "train/1"))  # a scene without noise says nothing of it
+
+
+def test_summary_gives_a_moving_source_from_where_to_where(ds):
+    from tsel_data.tools.inspect import summary
+
+    root, _ = ds
+    scene = find_scene(root, "train/1")  # its target turns 60 degrees
+    scene.elevation[0] = np.linspace(10.0, 25.0, scene.n_frames)
+    scene.distance[0] = np.linspace(1.8, 2.4, scene.n_frames)
+    target, interferer = [ln for ln in summary(scene).splitlines() if ln.startswith(("  [0]", "  [1]"))]
+    az = scene.azimuth[0]
+    assert f"az {az[0]:7.1f} -> {az[-1]:.1f} deg  el  10.0 -> 25.0 deg  dist 1.80 -> 2.40 m" in target
+    assert "el  -5.0 deg  dist 2.40 m" in interferer  # a static source: one value each
 
 
 def test_stereo_preview_of_each_format():

@@ -117,6 +117,101 @@ def test_query_relation_and_evidence_are_in_the_picture(ds, figure):
                and "pairing: hard" in t for t in texts)
 
 
+# An AudioCaps caption as long as they come (the longest run to about 200 characters).
+LONG_CAPTION = ("A man speaks over a public address system while a crowd of people cheer and applaud in the distance, "
+                "then a vehicle engine revs loudly and tires squeal on the wet pavement as rain keeps falling")
+BABBLE = {"kind": "babble", "snr_db": 15.25, "level_dbfs": -41.0, "clips": [["audio/a.wav", 0.0], ["audio/b.wav", 1.5]],
+          "directions": [[-87.639, 34.529], [24.115, -57.269]]}
+
+
+def _with(scene, noise=(), clip_id=None, query=None):
+    from tsel_data.store.records import NoiseRecord
+
+    rec = scene.record
+    sources = rec.sources if clip_id is None else (rec.sources[0], dataclasses.replace(rec.sources[1], clip_id=clip_id),
+                                                   *rec.sources[2:])
+    scene.record = dataclasses.replace(rec, noise=tuple(NoiseRecord.from_json(n) for n in noise), sources=sources)
+    scene.query = query or scene.query
+    return scene
+
+
+def _by_gid(fig, gid):
+    return fig.findobj(lambda a: hasattr(a, "get_gid") and a.get_gid() == gid)
+
+
+@pytest.mark.parametrize("case", ["caption", "noise", "wide legend"])
+def test_the_legend_never_covers_the_query(ds, figure, case):
+    """A long caption is wrapped beside the legend (or, beside a legend too wide to leave
+    it room, below it): caption, facts and legend never overlap, nor reach a panel."""
+    root, _ = ds
+    scene = _with(find_scene(root, "train/2"), noise=[BABBLE] if case == "noise" else (), query=LONG_CAPTION,
+                  clip_id="a-clip-named-after-its-whole-path-" * 4 if case == "wide legend" else None)
+    fig = figure(scene)
+    renderer = fig.canvas.get_renderer()
+    (query,), (facts,) = _by_gid(fig, "query"), _by_gid(fig, "query-facts")
+    legend = next(ax.get_legend() for ax in fig.axes if ax.get_legend() is not None)
+    boxes = {"query": query.get_window_extent(renderer), "facts": facts.get_window_extent(renderer),
+             "legend": legend.get_window_extent(renderer)}
+    for a in boxes:
+        for b in boxes:
+            assert a == b or not boxes[a].overlaps(boxes[b]), (a, b)
+    head = legend.axes
+    for ax in fig.axes:
+        if ax is not head:
+            assert not any(box.overlaps(ax.get_tightbbox(renderer)) for box in boxes.values()), ax.get_title()
+    if case == "wide legend":
+        assert boxes["query"].y1 <= boxes["legend"].y0  # the text went below it
+    # wrapped, nothing lost
+    assert "\n" in query.get_text()
+    assert " ".join(query.get_text().split()) == f"{scene.scene_id}: \u201c{LONG_CAPTION}\u201d"
+
+
+def test_babble_noise_is_in_the_picture(ds, figure):
+    root, _ = ds
+    fig = figure(_with(find_scene(root, "train/0"), noise=[BABBLE, {"kind": "sensor", "snr_db": None,
+                                                                    "level_dbfs": -60.0}]))
+    (facts,) = _by_gid(fig, "query-facts")
+    said = " ".join(facts.get_text().split())
+    assert ("noise (unlabelled): babble, 2 clips, SNR 15.2 dB, level -41.0 dBFS; sensor, on every channel, "
+            "level -60.0 dBFS") in said
+    assert any("babble noise: its 2 directions" in t for t in _texts(fig))
+    polar = next(ax for ax in fig.axes if ax.name == "polar")
+    azimuth = _axes(fig, "azimuth and elevation")
+    (rim,) = [ln for ln in polar.get_lines() if ln.get_gid() == "noise-directions"]
+    np.testing.assert_allclose(np.degrees(rim.get_xdata()), [-87.639, 24.115])
+    assert np.all(rim.get_ydata() == polar.get_ylim()[1])  # far away: on the rim
+    (beside,) = [ln for ln in azimuth.get_lines() if ln.get_gid() == "noise-directions"]
+    np.testing.assert_allclose(beside.get_ydata(), [-87.639, 24.115])
+
+
+def _frames_of(x, mask, hop):
+    """Whether every drawn x lies within a frame of ``mask`` (its edges included)."""
+    k = np.arange(len(mask))[mask]
+    x = x[np.isfinite(x)]
+    return bool(np.all(np.any((x[:, None] >= k * hop - 1e-9) & (x[:, None] <= (k + 1) * hop + 1e-9), axis=1)))
+
+
+def test_label_lines_follow_each_source_s_activity(ds, figure):
+    """Solid where a source is active, dotted where it is silent, nothing dotted under an
+    active stroke: an interferer active the whole scene is one solid stroke."""
+    root, _ = ds
+    scene = find_scene(root, "train/0")
+    scene.active[1] = True
+    hop, n = scene.label_hop, scene.n_frames
+    fig = figure(scene)
+    for ax in (_axes(fig, "azimuth and elevation"), next(a for a in fig.axes if a.get_ylabel().startswith("elev"))):
+        lines = {ln.get_gid(): ln for ln in ax.get_lines() if ln.get_gid()}
+        always = lines["labels-1"]
+        assert always.get_linestyle() == "-" and not np.isnan(always.get_xdata()).any()
+        assert always.get_xdata()[0] == 0.0 and always.get_xdata()[-1] == pytest.approx(n * hop)
+        assert not np.isfinite(lines["silent-1"].get_xdata()).any()
+        active = scene.active[0]
+        assert 0 < active.sum() < n
+        assert lines["labels-0"].get_linestyle() == "-" and lines["silent-0"].get_linestyle() == ":"
+        assert _frames_of(lines["labels-0"].get_xdata(), active, hop)
+        assert _frames_of(lines["silent-0"].get_xdata(), ~active, hop)
+
+
 # --- the contact sheet ----------------------------------------------------------------------------------------------
 
 

@@ -9,8 +9,8 @@ from .options import force_option, note_unfinished, roots_options
 @click.argument("dataset_dir", type=click.Path(file_okay=False))
 @click.argument("scene", required=False)
 @click.option("--split", help="Look the scene id up in this split only (with --sheet: take the scenes from it).")
-@click.option("--png", type=click.Path(dir_okay=False), help="Draw the query, room, array frame, azimuth and "
-              "elevation, activity and spectrogram here.")
+@click.option("--png", type=click.Path(dir_okay=False), help="Draw the query, noise, room, array frame, "
+              "azimuth and elevation, activity and spectrogram here.")
 @click.option("--wav", type=click.Path(dir_okay=False), help="Write the mixture here (float32 WAV, all channels), "
               "with a headphone preview (X.stereo.wav) and each source alone (X.target.stereo.wav, "
               "X.interferer1.stereo.wav, ...).")

@@ -13,7 +13,8 @@ from ..corpus.audio import save_wav
 from ..errors import DatasetError, TselError
 from ..receivers.stereo import stereo_preview
 from ..store.reader import Scene, list_splits, open_dataset
-from .picture import frame_runs, frame_segments, plot_scene, query_lines, room_text, source_tracks, wrap_breaks
+from .picture import (frame_runs, frame_segments, noise_parts, plot_scene, query_lines, room_text, source_tracks,
+                      wrap_breaks)
 
 # the drawing lives in tools/picture.py; these names stay importable from here
 __all__ = ["find_scene", "summary", "query_lines", "write_wav", "write_stereo", "stereo_path", "inspect_outputs",
@@ -54,6 +55,16 @@ def _fmt_vec(v) -> str:
     return "(" + ", ".join(f"{x:.2f}" for x in v) + ")"
 
 
+def _span(labels: np.ndarray, fmt: str) -> str | None:
+    """A label row's first labelled value, and its last after ``->`` when that reads
+    differently (a moving source); None when no frame is labelled."""
+    known = labels[np.isfinite(labels)]
+    if not known.size:
+        return None
+    first, last = fmt.format(known[0]), fmt.format(known[-1]).strip()
+    return first if first.strip() == last else f"{first} -> {last}"
+
+
 def summary(scene: Scene) -> str:
     """A multi-line human-readable description of a scene."""
     rec = scene.record
@@ -86,15 +97,12 @@ def summary(scene: Scene) -> str:
     for s in range(scene.n_sources):
         info = rec.sources[s]
         act = scene.active[s]
-        az = scene.azimuth[s]
-        if np.isfinite(az).any():
-            ok = np.isfinite(az)
-            a0, a1 = az[ok][0], az[ok][-1]
-            el, dist = scene.elevation[s], scene.distance[s]
-            el_text = f"{np.nanmean(el):5.1f} deg" if np.isfinite(el).any() else "    - (not labelled)"
-            dist_text = f"{np.nanmean(dist):.2f} m" if np.isfinite(dist).any() else "- (not labelled)"
-            pos = (f"az {a0:7.1f}" + (f" -> {a1:.1f}" if abs(a1 - a0) > 0.05 else "") +
-                   f" deg  el {el_text}  dist {dist_text}")
+        if np.isfinite(scene.azimuth[s]).any():
+            el = _span(scene.elevation[s], "{:5.1f}")
+            dist = _span(scene.distance[s], "{:.2f}")
+            pos = (f"az {_span(scene.azimuth[s], '{:7.1f}')} deg  el "
+                   + (f"{el} deg" if el else "    - (not labelled)") + "  dist "
+                   + (f"{dist} m" if dist else "- (not labelled)"))
         else:
             pos = "no position (additive)"
         extra = []
@@ -107,6 +115,9 @@ def summary(scene: Scene) -> str:
                      + (f"  {', '.join(extra)}" if extra else ""))
         for cap in info.captions:
             lines.append(f"        caption: {cap}")
+    if rec.noise:
+        lines.append("noise (unlabelled):")
+        lines += [f"  {kind:<9} {'  '.join(rest)}" for kind, *rest in (noise_parts(n) for n in rec.noise)]
     return "\n".join(lines)
 
 

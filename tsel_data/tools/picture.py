@@ -1,23 +1,26 @@
 """The picture of one scene (``tsel inspect --png``) and its small array-centred view
 (the contact sheet's, :mod:`tsel_data.tools.sheet`).
 
-The picture: above, the query, its type, relation and evidence, the scene and one
-legend for every panel; on the left the room seen from above (walls, the array with an
-arrow along its front, +x, every directional source with its trajectory, the target as
-a star) and the array frame seen from above (azimuth and distance around the array,
-front up, left to the left), which shows every scene, even one whose bank does not say
-where the array stood; on the right each source's azimuth and elevation per label frame
-(a stroke per active frame, dotted where silent; the target drawn narrow on top of the
-interferers' wide strokes, so both show where they share a value), the active frames of
-each source and the spectrogram of channel 0.
+The picture: above, the query, its type, relation and evidence, the scene and its noise,
+wrapped to the width the legend leaves them, and beside them one legend for every panel;
+on the left the room seen from above (walls, the array with an arrow along its front,
++x, every directional source with its trajectory, the target as a star) and the array
+frame seen from above (azimuth and distance around the array, front up, left to the
+left, babble noise's directions on its rim), which shows every scene, even one whose
+bank does not say where the array stood; on the right each source's azimuth and
+elevation per label frame (a stroke per active frame, dotted over silent ones only; the
+target drawn narrow on top of the interferers' wide strokes, so both show where they
+share a value; babble's directions beside the azimuth axis), the active frames of each
+source and the spectrogram of channel 0.
 """
 from __future__ import annotations
 
 import os
-import textwrap
+import re
 
 import numpy as np
 
+from ..choices import NoiseKind
 from ..core.atomic import atomic_output
 from ..core.geometry import array_to_room, sph_to_cart
 from ..dsp.features import stft
@@ -29,6 +32,17 @@ AZIMUTH_LIMITS = (-195.0, 195.0)
 # Drawing order and strokes: interferers wide and pale below, the target narrow on top.
 TARGET_Z, INTERFERER_Z = 5.0, 2.0
 TARGET_LW, INTERFERER_LW = 2.4, 6.0
+# Noise is no source: grey, and a marker no source uses.
+NOISE_COLOUR, NOISE_MARKER = "0.35", "D"
+# The figure in inches: the panels keep their size, the header above them is as tall as
+# its text or its legend; left and right as matplotlib's defaults.
+FIG_WIDTH, BODY_HEIGHT = 14.0, 6.7
+MARGIN_TOP, HEADER_GAP, MARGIN_BOTTOM = 0.3, 0.45, 1.0
+PLOT_LEFT, PLOT_RIGHT = 0.125, 0.9
+LEGEND_GAP = 0.3  # inches between the header's text and the legend
+# Text narrower than this share of the header reads badly: below the legend instead.
+MIN_TEXT_SHARE = 0.35
+CAPTION_SIZE, FACTS_SIZE, LEGEND_SIZE = 13.0, 9.0, 8.5
 
 
 def source_colour(s: int) -> str:
@@ -125,6 +139,37 @@ def room_text(rec) -> str | None:
     return None
 
 
+# What a noise's record says it is, by kind (render/noise.py NOISE_KINDS); a kind not
+# named here is told by its kind and levels alone.
+NOISE_DETAILS = {
+    NoiseKind.AMBIENCE: lambda n: f"recording {n.file}" + (f" from sample {n.offset}" if n.offset is not None else ""),
+    NoiseKind.DIFFUSE: lambda n: f"{n.spectrum} spectrum" + (f" of {n.clips[0][0]}" if n.clips else ""),
+    NoiseKind.BABBLE: lambda n: f"{len(n.clips or ())} clips",
+    NoiseKind.SENSOR: lambda n: "on every channel",
+}
+
+
+def noise_parts(noise, directions: bool = True) -> list[str]:
+    """One noise of a scene's record in words: its kind, what it is, where it comes from
+    (with ``directions``, for noise that has them), its SNR and its level in the mixture."""
+    detail = NOISE_DETAILS.get(noise.kind)
+    parts = [str(noise.kind)] + ([detail(noise)] if detail else [])
+    if directions and noise.directions:
+        parts.append("from (az, el) deg " + " ".join(f"({a:.1f}, {e:.1f})" for a, e in noise.directions))
+    if noise.snr_db is not None:
+        parts.append(f"SNR {noise.snr_db:.1f} dB")
+    if noise.level_dbfs is not None:
+        parts.append(f"level {noise.level_dbfs:.1f} dBFS")
+    return parts
+
+
+def noise_directions(rec) -> np.ndarray:
+    """[K, 2] azimuth, elevation (degrees, array frame) of every noise that comes from
+    somewhere (babble)."""
+    dirs = [d for n in rec.noise for d in (n.directions or ())]
+    return np.asarray(dirs, dtype=np.float64).reshape(-1, 2)
+
+
 def pyplot():
     # matplotlib loads in a second; only the commands that draw pay for it
     import matplotlib  # seconds to import: loaded only when a picture is drawn
@@ -173,6 +218,12 @@ def draw_array_view(ax, scene, small: bool = False) -> None:
             ax.plot(th[0], r[0], "x", color=col, ms=5 if small else 7, zorder=z + 0.5)
     ax.plot([0.0], [0.0], "ks", ms=4 if small else 6, zorder=TARGET_Z + 1)
     ax.set_rlim(0.0, 1.15 * far)
+    noise = np.zeros((0, 2)) if small else noise_directions(scene.record)  # the sheet's view: sources only
+    if noise.size:
+        # babble is far away (render/noise.py BABBLE_DISTANCE): on the rim, not out of the view
+        ax.plot(np.radians(noise[:, 0]), np.full(len(noise), 1.15 * far), ls="", marker=NOISE_MARKER,
+                color=NOISE_COLOUR, ms=6, clip_on=False, zorder=TARGET_Z + 1, gid="noise-directions")
+        seen.append(noise[:, 0])
     ax.tick_params(labelsize=8)
     if small:
         # a thumbnail has no room for distance numbers: rings 1 m apart, said once beside it
@@ -243,29 +294,103 @@ def _legend_handles(scene, room: bool):
         handles.append(Line2D([], [], color=source_colour(s), marker=marker, ms=size, mec="k" if s == 0 else None,
                               lw=TARGET_LW if s == 0 else INTERFERER_LW, alpha=1.0 if s == 0 else 0.5,
                               label=name + (f": {info.clip_id}" if info.clip_id else "")))
+    n_dirs = len(noise_directions(rec))
+    if n_dirs:
+        handles.append(Line2D([], [], ls="", marker=NOISE_MARKER, color=NOISE_COLOUR, ms=6,
+                              label=f"babble noise: its {n_dirs} directions (unlabelled)"))
     return handles
 
 
-def _header_text(scene) -> str:
+def _header_lines(scene) -> list[str]:
     rec = scene.record
     lines = query_lines(rec) or [f"query type: {scene.query_type} (a caption of the target)   pairing: {scene.pairing}"]
     where = room_text(rec)
     lines.append(f"{rec.scenario}, {rec.motion}, {rec.rir_method} RIRs" + (f"; room {where}" if where else ""))
-    return "\n".join(textwrap.fill(x, 120, subsequent_indent="    ") for x in lines)
+    if rec.noise:
+        lines.append("noise (unlabelled): " + "; ".join(", ".join(noise_parts(n, directions=False))
+                                                        for n in rec.noise))
+    return lines
+
+
+def fit_lines(text: str, fits, indent: str = "") -> list[str]:
+    """``text`` broken into lines that each ``fits`` (a test of the drawn width): between
+    words, inside a word only where it alone is too wide; each line after the first of a
+    paragraph starts with ``indent``; the spaces between words kept as they are."""
+    lines: list[str] = []
+    for para in text.split("\n"):
+        line = ""
+        for word in re.findall(r"\S+\s*", para):
+            if line.strip() and not fits(line + word.rstrip()):
+                lines.append(line.rstrip())
+                line = indent
+            if fits(line + word.rstrip()):
+                line += word
+                continue
+            for ch in word:  # a word wider than a line: cut where it must be
+                if line.strip() and not ch.isspace() and not fits(line + ch):
+                    lines.append(line.rstrip())
+                    line = indent
+                line += ch
+        lines.append(line.rstrip())
+    return lines
+
+
+def _text_fits(renderer, width_px: float, size: float, weight: str = "normal"):
+    from matplotlib.font_manager import FontProperties  # matplotlib loads only when a picture is drawn
+
+    prop = FontProperties(size=size, weight=weight)
+    return lambda s: renderer.get_text_width_height_descent(s, prop, ismath=False)[0] <= width_px
+
+
+def _draw_header(fig, scene, room: bool):
+    """The query and its facts at the top left, the legend at the top right; the text is
+    wrapped, as drawn, to the width the legend leaves it, so the two never overlap (below
+    a legend too wide to leave it room). Returns the header's axes, to be placed, and its
+    height in inches."""
+    from matplotlib.transforms import ScaledTranslation  # matplotlib loads only when a picture is drawn
+
+    ax = fig.add_axes((PLOT_LEFT, 0.0, PLOT_RIGHT - PLOT_LEFT, 1.0))
+    ax.axis("off")
+    legend = ax.legend(handles=_legend_handles(scene, room), loc="upper right", fontsize=LEGEND_SIZE, framealpha=0.9,
+                       borderaxespad=0.0)
+    renderer = fig.canvas.get_renderer()
+    box, frame = legend.get_window_extent(renderer), ax.get_window_extent(renderer)
+    width = frame.width - box.width - LEGEND_GAP * fig.dpi
+    below = width < MIN_TEXT_SHARE * frame.width
+    drop = box.height / fig.dpi + LEGEND_GAP if below else 0.0
+    width = frame.width if below else width
+    query = fit_lines(f"{scene.scene_id}: \u201c{scene.query}\u201d", _text_fits(renderer, width, CAPTION_SIZE, "bold"))
+    facts = _text_fits(renderer, width, FACTS_SIZE)
+    head = ax.text(0.0, 1.0, "\n".join(query), fontsize=CAPTION_SIZE, weight="bold", va="top", parse_math=False,
+                   transform=ax.transAxes + ScaledTranslation(0.0, -drop, fig.dpi_scale_trans), gid="query")
+    text = ax.annotate("\n".join(x for line in _header_lines(scene) for x in fit_lines(line, facts, "    ")),
+                       xy=(0.0, 0.0), xycoords=head, xytext=(0.0, -8.0), textcoords="offset points", va="top",
+                       fontsize=FACTS_SIZE, parse_math=False, gid="query-facts")
+    return ax, max(frame.y1 - text.get_window_extent(renderer).y0, box.height) / fig.dpi
 
 
 def _draw_labels(ax, scene, labels, wrap: bool) -> None:
-    t, hop = scene.frame_times(), scene.label_hop
+    hop = scene.label_hop
     for s in _source_order(scene):
         v = labels[s].astype(np.float64)
         if not np.isfinite(v).any():
             continue
         col, target = source_colour(s), s == 0
         lw, z, alpha = (TARGET_LW, TARGET_Z, 1.0) if target else (INTERFERER_LW, INTERFERER_Z, 0.45)
-        ax.plot(*(wrap_breaks(t, v) if wrap else (t, v)), ":", color=col, lw=1.2, zorder=z - 0.5)
-        ax.plot(*frame_segments(v, scene.active[s], hop, wrap), "-", color=col, lw=lw, alpha=alpha, zorder=z,
+        active = np.asarray(scene.active[s], bool)
+        # dotted over the silent frames only: an interferer's pale stroke would let a dotted
+        # line under it show through where it is active
+        ax.plot(*frame_segments(v, ~active, hop, wrap), ":", color=col, lw=1.2, zorder=z - 0.5, gid=f"silent-{s}")
+        ax.plot(*frame_segments(v, active, hop, wrap), "-", color=col, lw=lw, alpha=alpha, zorder=z,
                 solid_capstyle="butt", gid=f"labels-{s}")
     ax.grid(alpha=0.3)
+
+
+def _draw_noise_beside(ax, azimuths: np.ndarray) -> None:
+    """Babble's azimuths just right of the azimuth axis: directions without a time course,
+    beside the sources' tracks, not on them."""
+    ax.plot(np.full(len(azimuths), 1.012), azimuths, ls="", marker=NOISE_MARKER, color=NOISE_COLOUR, ms=6,
+            clip_on=False, transform=ax.get_yaxis_transform(), gid="noise-directions")
 
 
 def scene_figure(scene):
@@ -277,35 +402,34 @@ def scene_figure(scene):
     tracks, centre, yaw = source_tracks(scene)
     # measured-bank scenes may know their room's size but not where the array stood: array frame only
     dims = rec.room.dims if rec.array.centre is not None else None
-    fig = plt.figure(figsize=(14, 10.5))
-    outer = fig.add_gridspec(2, 2, width_ratios=(1.0, 1.45), height_ratios=(0.16, 1.0), hspace=0.08, wspace=0.22)
-    ax_head = fig.add_subplot(outer[0, :])
-    ax_head.axis("off")
+    fig = plt.figure(figsize=(FIG_WIDTH, BODY_HEIGHT))
+    ax_head, head = _draw_header(fig, scene, bool(dims))
+    total = MARGIN_TOP + head + HEADER_GAP + BODY_HEIGHT + MARGIN_BOTTOM
+    fig.set_size_inches(FIG_WIDTH, total)
+    ax_head.set_position((PLOT_LEFT, 1.0 - (MARGIN_TOP + head) / total, PLOT_RIGHT - PLOT_LEFT, head / total))
+    outer = fig.add_gridspec(1, 2, width_ratios=(1.0, 1.45), left=PLOT_LEFT, right=PLOT_RIGHT, wspace=0.22,
+                             top=1.0 - (MARGIN_TOP + head + HEADER_GAP) / total, bottom=MARGIN_BOTTOM / total)
     if dims:
-        left = outer[1, 0].subgridspec(2, 1, height_ratios=(float(np.clip(dims[1] / dims[0], 0.45, 1.4)), 1.1),
+        left = outer[0, 0].subgridspec(2, 1, height_ratios=(float(np.clip(dims[1] / dims[0], 0.45, 1.4)), 1.1),
                                        hspace=0.42)
         _draw_room(fig.add_subplot(left[0]), scene, tracks, centre, yaw, dims)
         ax_polar = fig.add_subplot(left[1], projection="polar")
     else:
-        ax_polar = fig.add_subplot(outer[1, 0], projection="polar")
+        ax_polar = fig.add_subplot(outer[0, 0], projection="polar")
     draw_array_view(ax_polar, scene)
-    right = outer[1, 1].subgridspec(4, 1, height_ratios=(1.0, 0.75, 0.25 + 0.12 * scene.n_sources, 0.95),
+    right = outer[0, 1].subgridspec(4, 1, height_ratios=(1.0, 0.75, 0.25 + 0.12 * scene.n_sources, 0.95),
                                     hspace=0.55)
     ax_az = fig.add_subplot(right[0])
     ax_el = fig.add_subplot(right[1], sharex=ax_az)
     ax_act = fig.add_subplot(right[2], sharex=ax_az)
     ax_spec = fig.add_subplot(right[3])
 
-    ax_head.text(0.0, 1.0, textwrap.fill(f"{scene.scene_id}: \u201c{scene.query}\u201d", 70), fontsize=13,
-                 weight="bold", va="top", transform=ax_head.transAxes, gid="query")
-    ax_head.text(0.0, 0.45, _header_text(scene), fontsize=9, va="top", transform=ax_head.transAxes, gid="query-facts")
-    handles = _legend_handles(scene, bool(dims))
-    ax_head.legend(handles=handles, loc="upper right", fontsize=8.5, framealpha=0.9, borderaxespad=0.0,
-                   ncol=1 if len(handles) <= 4 else 2)  # many sources: two columns, the header keeps its height
-
     # --- azimuth and elevation per frame ---------------------------------------------------
     _draw_labels(ax_az, scene, scene.azimuth, True)
     _draw_labels(ax_el, scene, scene.elevation, False)
+    noise = noise_directions(rec)
+    if noise.size:
+        _draw_noise_beside(ax_az, noise[:, 0])
     ax_az.axhspan(180.0, AZIMUTH_LIMITS[1], color="0.92", zorder=0)
     ax_az.axhspan(AZIMUTH_LIMITS[0], -180.0, color="0.92", zorder=0)
     ax_az.set_ylim(*AZIMUTH_LIMITS)
