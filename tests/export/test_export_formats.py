@@ -22,7 +22,8 @@ from tsel_data.store.writer import write_shard
 from tsel_data.tools.streaming import SceneStream
 
 # datasets caches what it loads under HF_HOME: a folder of this run, never the network
-os.environ.setdefault("HF_HOME", tempfile.mkdtemp(prefix="tsel-test-hf-"))
+if "HF_HOME" not in os.environ:  # tests/conftest.py sets it inside the run's folder
+    os.environ["HF_HOME"] = tempfile.mkdtemp(prefix="tsel-test-hf-")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
 TWO_SCENES = "1.1MB"  # 4 channels, 2 s at 16 kHz: 512 kB of float32 per scene
@@ -230,32 +231,117 @@ def test_datasets_loads_the_webdataset_export_with_every_channel(datasets_, wds_
         assert row["json"]["query"] == r.query
 
 
+# the hf shards hold each scene twice, its audio file and its samples: 4 channels, 2 s at
+# 16 kHz are 512 kB of each in float32
+HF_TWO_SCENES = "2.1MB"
+
+
 @pytest.fixture(scope="module")
 def hf_out(datasets_, tmp_path_factory):
     pytest.importorskip("pyarrow")
     out = {}
-    for coding in ("float32", "flac"):
+    for coding in ("float32", "int16", "flac"):
         out[coding] = str(tmp_path_factory.mktemp(f"hf-{coding}"))
-        export("hf", datasets_[coding], out[coding], shard_size=TWO_SCENES)
+        export("hf", datasets_[coding], out[coding], shard_size=HF_TWO_SCENES)
     return out
 
 
-@pytest.mark.parametrize("coding", ["float32", "flac"])
-def test_datasets_loads_the_hf_layout_and_the_snippet_keeps_every_channel(datasets_, hf_out, coding):
+@pytest.fixture
+def no_torchcodec(monkeypatch):
+    """datasets as it is on a machine without torchcodec, which datasets 4 and later decode
+    Audio with: ``datasets.config.TORCHCODEC_AVAILABLE``, which it sets at import from
+    whether torchcodec is installed, is False (this venv has none; one that has it is
+    made to take the same path)."""
     hfds = pytest.importorskip("datasets")
+    monkeypatch.setattr(hfds.config, "TORCHCODEC_AVAILABLE", False)
+    return hfds
+
+
+def stored(coding):
+    """(numpy dtype of the samples column, what one stored unit is as a float sample)."""
+    return (np.float32, 1.0) if coding == "float32" else (np.int16, 1 / 32768)
+
+
+@pytest.mark.parametrize("coding", ["float32", "int16", "flac"])
+def test_ds0_of_the_hf_layout_works_with_stock_datasets_and_holds_every_channel(datasets_, hf_out, coding,
+                                                                                no_torchcodec):
+    hfds = no_torchcodec
+    pa = pytest.importorskip("pyarrow")
+    from tsel_data.export.hf import DATA_COLUMNS
+
     ref = reference(datasets_[coding], "train")
     ds = hfds.load_dataset(hf_out[coding], split="train")  # the card's configs: default = the audio shards
-    assert isinstance(ds.features["audio"], hfds.Audio)
-    rows = ds.cast_column("audio", hfds.Audio(decode=False))  # the snippet of docs/commands/export.md
-    assert len(rows) == len(ref) == len(glob.glob(os.path.join(hf_out[coding], "data", "train", "*.parquet"))) + 1
-    for row in rows:
+    assert set(ds[0]) == {c for c, _ in DATA_COLUMNS}  # the user's first ds[0]: an ImportError before
+    # an Audio column datasets decodes still fails here as that ds[0] did (the path without torchcodec);
+    # the export's is not decoded
+    with pytest.raises(ImportError, match="torchcodec"):
+        ds.cast_column("audio", hfds.Audio())[0]
+    assert ds.features["audio"] == hfds.Audio(decode=False)
+    dtype, unit = stored(coding)
+    channels, frames = next(iter(ref.values())).audio.shape
+    assert ds.data.schema.field("samples").type == pa.list_(pa.list_(pa.from_numpy_dtype(dtype), frames), channels)
+    shards = glob.glob(os.path.join(hf_out[coding], "data", "train", "*.parquet"))
+    # at most 2.1 MB of audio file and samples a shard: float32 3 scenes in 2 + 1, int16 (32 channels, 4 MB a
+    # scene) one a shard, flac (a smaller file and int16 samples) both in one
+    assert len(ds) == len(ref) and len(shards) == {"float32": 2, "int16": 2, "flac": 1}[coding]
+    for i in range(len(ds)):
+        row = ds[i]  # a user's plain ds[i]: python values, nothing decoded
         r = ref[row["scene_id"]]
+        assert set(row["audio"]) == {"bytes", "path"} and row["audio"]["path"] == \
+            f"{r.scene_id}.{'flac' if coding == 'flac' else 'wav'}"
+        samples = np.asarray(row["samples"], dtype=dtype)
+        assert samples.shape == r.audio.shape == (channels, frames)
+        np.testing.assert_array_equal(np.asarray(row["samples"], dtype=np.float32) * np.float32(unit), r.audio)
+        # the audio file holds the same samples, every channel: as soundfile decodes it, and as stored
         audio, fs = sf.read(io.BytesIO(row["audio"]["bytes"]), dtype="float32", always_2d=True)
-        assert fs == r.fs and audio.shape[1] == r.audio.shape[0] == 4
-        np.testing.assert_array_equal(audio.T, r.audio)
-        np.testing.assert_array_equal(np.array(row["azimuth"], dtype=np.float32), r.azimuth)
-        np.testing.assert_array_equal(np.array(row["active"]), r.active)
-        assert row["query"] == r.query and row["query_relation"] == r.query_relation
+        assert fs == row["fs"] == r.fs
+        np.testing.assert_array_equal(audio.T, np.asarray(row["samples"], dtype=np.float32) * np.float32(unit))
+        units, _ = sf.read(io.BytesIO(row["audio"]["bytes"]), dtype=np.dtype(dtype).name, always_2d=True)
+        np.testing.assert_array_equal(units.T, samples)
+        # and the labels are the scene's (NaN where a source has no position)
+        for key in ("azimuth", "elevation", "distance", "active", "mic_positions"):
+            want = getattr(r, key)
+            np.testing.assert_array_equal(np.array(row[key], dtype=want.dtype), want, err_msg=key)
+        assert (row["query"], row["query_type"], row["query_relation"], row["pairing"]) == \
+            (r.query, r.query_type, r.query_relation, r.pairing)
+    # arrays straight from datasets' numpy format, a batch of scenes at once (it widens integers to int64)
+    batch = ds.with_format("numpy")[:2]
+    assert batch["samples"].shape == (2, channels, frames)
+    assert (batch["samples"].dtype == np.float32) if coding == "float32" else (batch["samples"].dtype.kind == "i")
+    np.testing.assert_array_equal(batch["samples"][1].astype(np.float32) * np.float32(unit),
+                                  ref[batch["scene_id"][1]].audio)
+
+
+@pytest.mark.parametrize("coding", ["float32", "int16", "flac"])
+def test_the_hf_cards_loading_snippet_runs_with_stock_datasets(datasets_, hf_out, coding, no_torchcodec,
+                                                                monkeypatch, capsys):
+    """The card's Python, as it is, in the export's folder: it loads the first test scene and
+    finds the audio file's samples equal to the samples column."""
+    card = open(os.path.join(hf_out[coding], "README.md"), encoding="utf-8").read()
+    section = card.split("## Load it", 1)[1].split("\n## ", 1)[0]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(hf_out[coding])
+    exec(compile(code, "README.md", "exec"), {})
+    first = next(iter(reference(datasets_[coding], "test").values()))
+    shown = capsys.readouterr().out
+    assert shown.startswith(f"{first.scene_id} {first.query!r} {first.audio.shape} {first.azimuth.shape}"), shown
+    assert f"[{first.audio.shape[0]}, {first.audio.shape[1]}]" in section  # the shape it says is the scene's
+
+
+def test_an_hf_export_of_the_layout_before_the_samples_is_not_added_to(datasets_, tmp_path):
+    """Its shards have no samples column and a decoded Audio feature: a split exported
+    now would not load beside them."""
+    pytest.importorskip("pyarrow")
+    from tsel_data.errors import DatasetError
+    from tsel_data.export.base import MANIFEST_FILE
+
+    out = tmp_path / "hf"
+    export("hf", datasets_["flac"], str(out), splits=["train"], card=False)
+    manifest = json.loads((out / MANIFEST_FILE).read_text())
+    del manifest["identity"]["hf layout"]  # as the exports before it wrote their manifest
+    (out / MANIFEST_FILE).write_text(json.dumps(manifest))
+    with pytest.raises(DatasetError, match=r"another hf layout None \(now 2\)"):
+        export("hf", datasets_["flac"], str(out), splits=["test"], card=False)
 
 
 def test_the_metadata_tables_follow_their_schema(datasets_, hf_out):

@@ -149,6 +149,46 @@ def header(doc, yaml_extra: dict | None = None) -> dict:
     return {**head, **(yaml_extra or {})}
 
 
+def hf_loading(doc, splits: list) -> list:
+    """The card's "Load it" section of an ``hf`` export: Python that runs with stock
+    ``datasets`` (no audio codec: the Audio column is not decoded) and soundfile, in the
+    export's folder (tests/export/test_export_formats.py runs it)."""
+    split = "test" if "test" in splits else splits[0]
+    coding = str(doc.raw.get("audio_coding", "float32"))
+    duration = (doc.config.get("audio") or {}).get("duration")
+    frames = int(round(float(duration) * doc.fs)) if isinstance(duration, (int, float)) else "T"
+    shape = f"[{len(doc.channel_names)}, {frames}]"
+    if coding == "float32":
+        dtype, read, numpy = "float32", 'np.asarray(row["samples"], dtype=np.float32)', "float32"
+    else:
+        dtype, read = "int16", 'np.asarray(row["samples"], dtype=np.float32) / 32768  # stored as int16'
+        numpy = "integers (int64: datasets widens them), to divide by 32768"
+    audio_file = "FLAC" if coding == "flac" else "WAV"
+    return ["## Load it", "",
+            "With `datasets` alone, no audio codec: every scene's samples are in `samples` "
+            f"({dtype} {shape}, every channel, fixed-size lists any Parquet reader reads), and its {audio_file} "
+            'file in `audio`, whose feature is `Audio(decode=False)`: `row["audio"]` is `{"bytes", "path"}`, '
+            "which soundfile reads whole. (`datasets` 4 and later decode an `Audio` column with torchcodec, one "
+            "more install, and `datasets` 3 down-mixes it to mono: leave it undecoded.)", "",
+            "```python", "import io", "", "import numpy as np", "import soundfile as sf",
+            "from datasets import load_dataset", "",
+            f'# from the Hub: load_dataset("OWNER/NAME", split="{split}"); a copy: load_dataset("/path/to/it", '
+            f'split="{split}")',
+            f'ds = load_dataset("parquet", data_files={{"{split}": "data/{split}/*.parquet"}}, split="{split}")',
+            "row = ds[0]",
+            f"samples = {read}",
+            'audio, fs = sf.read(io.BytesIO(row["audio"]["bytes"]), dtype="float32", always_2d=True)',
+            f'assert fs == row["fs"] and np.array_equal(audio.T, samples)  # the {audio_file} file: the same '
+            "samples",
+            'print(row["scene_id"], repr(row["query"]), samples.shape, np.asarray(row["azimuth"]).shape)',
+            "```", "",
+            f'`ds.with_format("numpy")` gives arrays (`samples` {shape}, {numpy}; `azimuth`, `elevation`, '
+            '`distance`, `active` [S, F], source 0 the target); `ds.with_format("torch", columns=[...])` '
+            "tensors. The record of every scene and every source: the configs `scenes` and `sources` "
+            f'(`load_dataset("OWNER/NAME", "sources", split="{split}")`; here, the files '
+            f"`metadata/{split}/scenes.parquet` and `sources.parquet`).", ""]
+
+
 def card_text(root: str, doc, export: str = "card", splits=None, yaml_extra: dict | None = None,
               figure: str | None = None, stats: dict | None = None) -> str:
     """The card of the dataset ``root`` (``doc``: its DatasetDoc) for an export of kind
@@ -180,8 +220,10 @@ def card_text(root: str, doc, export: str = "card", splits=None, yaml_extra: dic
             f"- audio: {doc.fs} Hz, {audio.get('duration', '?')} s per scene, stored as {coding} (all channels)",
             f"- labels: azimuth, elevation, distance and activity per source and {doc.label_hop} s frame; "
             "source 0 is the target",
-            f"- clips: {corpus}", f"- rooms: {rooms}", "",
-            "## Sources and licences", "",
+            f"- clips: {corpus}", f"- rooms: {rooms}", ""]
+    if export == "hf":
+        out += hf_loading(doc, splits)
+    out += ["## Sources and licences", "",
             "| part | what | licence |", "|---|---|---|",
             f"| clips | {corpus} | {corpus_licence} |", f"| rooms | {rooms} | {rooms_licence} |",
             "| labels, queries, mixtures | made by tsel-data from the above | as the clips they are made of |", "",

@@ -1,23 +1,33 @@
 """The Hugging Face layout: Parquet shards of audio and labels, Parquet metadata tables,
 and a card whose YAML header names the three configs, so ``datasets.load_dataset(OUT)``
-reads it from a local folder or from the Hub.
+reads it from a local folder or from the Hub, and ``ds[0]`` works with stock
+``datasets`` (no audio codec needed).
 
 Output::
 
     OUT/
       README.md                          the card; configs: default (data/), scenes, sources
-      data/{split}/{k:05d}.parquet       one row per scene: ids, query, labels, audio (all channels)
+      data/{split}/{k:05d}.parquet       one row per scene: ids, query, audio (file and samples), labels
       metadata/{split}/scenes.parquet    one row per scene: the record (room, array, levels, query fields)
       metadata/{split}/sources.parquet   one row per source of every scene: clip, captions, labels, levels
 
-``audio`` is the Hub's Audio column (a struct of ``bytes`` and ``path``): one WAV file
-per scene (32-bit float for float32 datasets, 16-bit for int16) or its FLAC file (flac
-datasets), every channel. ``datasets.Audio`` decodes at most 2 channels and may down-mix
-to mono, so read the bytes yourself: ``ds.cast_column("audio", Audio(decode=False))``,
-then ``soundfile.read(io.BytesIO(row["audio"]["bytes"]))`` (docs/commands/export.md).
-Every column and its type: :data:`DATA_COLUMNS`, :data:`SCENE_COLUMNS`,
-:data:`SOURCE_COLUMNS` (docs/format.md, "Hugging Face layout"). Needs pandas and pyarrow
-(``pip install 'tsel-data[export]'``).
+Every scene's audio is there twice, both exact and with every channel:
+
+- ``samples``: the samples as the dataset stores them, float32 [C][T] (int16 for int16
+  and flac datasets: ``sample / 32768``), Arrow fixed-size lists any Parquet reader
+  reads; ``datasets`` gives a nested list, or an array [C, T] with
+  ``ds.with_format("numpy")``. ``fs`` beside it.
+- ``audio``: the Hub's Audio column (a struct of ``bytes`` and ``path``): one WAV file
+  per scene (32-bit float for float32 datasets, 16-bit for int16) or its FLAC file (flac
+  datasets). Its feature in the Parquet metadata is ``Audio(decode=False)`` (datasets 4
+  and later decode Audio with torchcodec, one more install; datasets 3 down-mixes it to
+  mono), so ``row["audio"]`` is the file, which
+  ``soundfile.read(io.BytesIO(row["audio"]["bytes"]))`` (or :func:`audio_of`) reads whole.
+
+Every column and its type: :data:`DATA_COLUMNS` (:func:`data_columns` gives the
+samples' shape), :data:`SCENE_COLUMNS`, :data:`SOURCE_COLUMNS` (docs/format.md, "Hugging
+Face layout"; docs/commands/export.md). Needs pandas and pyarrow (``pip install
+'tsel-data[export]'``).
 """
 from __future__ import annotations
 
@@ -27,19 +37,23 @@ import json
 import numpy as np
 import soundfile as sf
 
+from ..choices import AudioCoding
 from ..errors import TselError
 from .base import Shards, SplitResult, Writer, WriterOption, parse_size
-from ..formats.coding import file_audio
+from ..formats.coding import file_audio, stored_samples
 
 DEFAULT_SHARD_SIZE = "500MB"
+LAYOUT = 2  # the writer's identity: 2 has the samples column and the undecoded Audio feature
 ROW_GROUP_BYTES = 64_000_000  # the Hub's viewer reads a row group at a time
 
-# (column, type) where type is a short name :func:`_arrow_type` turns into pyarrow's
+# (column, type) where type is a short name :func:`_arrow_type` turns into pyarrow's:
+# ``[]`` a list, ``[N]`` a list of exactly N (the first the outermost, as in ``x[C][T]``)
+SAMPLES = "samples[C][T]"  # float32 or int16, C and T of the dataset: :func:`data_columns`
 DATA_COLUMNS = (
     ("scene_id", "string"), ("split", "string"), ("index", "int64"), ("query", "string"), ("query_type", "string"),
-    ("query_relation", "string"), ("pairing", "string"), ("audio", "audio"), ("azimuth", "float32[][]"),
-    ("elevation", "float32[][]"), ("distance", "float32[][]"), ("active", "bool[][]"),
-    ("mic_positions", "float32[][]"),
+    ("query_relation", "string"), ("pairing", "string"), ("audio", "audio"), ("samples", SAMPLES),
+    ("fs", "int64"), ("azimuth", "float32[][]"), ("elevation", "float32[][]"), ("distance", "float32[][]"),
+    ("active", "bool[][]"), ("mic_positions", "float32[][]"),
 )
 SCENE_COLUMNS = (
     ("scene_id", "string"), ("split", "string"), ("index", "int64"), ("seed", "int64"), ("scenario", "string"),
@@ -58,8 +72,10 @@ SOURCE_COLUMNS = (
     ("level_dbfs", "float64"), ("pairing", "string"), ("caption_similarity", "float64"), ("azimuth", "float32[]"),
     ("elevation", "float32[]"), ("distance", "float32[]"), ("active", "bool[]"),
 )
-# the Hub's feature for the audio column; every other column's type follows from Parquet
-HF_FEATURES = {"audio": {"_type": "Audio"}}
+# the Hub's feature for the audio column, not decoded: datasets 4 and later decode Audio
+# with torchcodec (an ImportError on the first ``ds[0]`` without it), datasets 3 to mono
+# by default; every other column's type follows from Parquet
+HF_FEATURES = {"audio": {"_type": "Audio", "decode": False}}
 
 
 def _pyarrow():
@@ -75,10 +91,23 @@ def _pyarrow():
 def _arrow_type(pa, name: str):
     if name == "audio":
         return pa.struct([("bytes", pa.binary()), ("path", pa.string())])
-    if name.endswith("[]"):
-        return pa.list_(_arrow_type(pa, name[:-2]))
-    return {"string": pa.string(), "int64": pa.int64(), "float64": pa.float64(), "float32": pa.float32(),
-            "bool": pa.bool_()}[name]
+    if name.endswith("]"):  # the outermost list is the first bracket: strip the first
+        base, dims = name.split("[", 1)
+        inner, size = base + dims[dims.index("]") + 1:], dims[:dims.index("]")]
+        return pa.list_(_arrow_type(pa, inner), int(size)) if size else pa.list_(_arrow_type(pa, inner))
+    return {"string": pa.string(), "int64": pa.int64(), "int16": pa.int16(), "float64": pa.float64(),
+            "float32": pa.float32(), "bool": pa.bool_()}[name]
+
+
+def samples_dtype(coding: str) -> str:
+    """The samples' type: float32, or int16 for the 16-bit codings (int16 and flac)."""
+    return "float32" if coding == AudioCoding.FLOAT32 else "int16"
+
+
+def data_columns(coding: str, shape: tuple) -> tuple:
+    """:data:`DATA_COLUMNS` with the samples' type and shape: ``float32[C][T]`` or ``int16[C][T]``."""
+    channels, frames = shape
+    return tuple((n, f"{samples_dtype(coding)}[{channels}][{frames}]" if t == SAMPLES else t) for n, t in DATA_COLUMNS)
 
 
 def schema(columns, hf_features: dict | None = None):
@@ -89,11 +118,13 @@ def schema(columns, hf_features: dict | None = None):
 
 
 def data_row(scene, coding: str) -> dict:
-    """One row of an audio shard."""
+    """One row of an audio shard (``samples``: the array, [C, T], as the dataset stores it)."""
     ext, data = file_audio(scene.audio, coding, scene.fs)
     return {"scene_id": scene.scene_id, "split": scene.split, "index": int(scene.index), "query": scene.query,
             "query_type": scene.query_type, "query_relation": scene.query_relation, "pairing": scene.pairing,
-            "audio": {"bytes": data, "path": f"{scene.scene_id}.{ext}"}, "azimuth": scene.azimuth.tolist(),
+            "audio": {"bytes": data, "path": f"{scene.scene_id}.{ext}"},
+            "samples": np.ascontiguousarray(stored_samples(scene.audio, coding)), "fs": int(scene.fs),
+            "azimuth": scene.azimuth.tolist(),
             "elevation": scene.elevation.tolist(), "distance": scene.distance.tolist(),
             "active": scene.active.tolist(), "mic_positions": scene.mic_positions.tolist()}
 
@@ -132,6 +163,46 @@ def source_rows(scene) -> list[dict]:
     return rows
 
 
+def data_table(rows: list[dict], data_schema):
+    """An audio shard's rows as a table: the samples viewing their arrays (no copy, no
+    Python lists), the other columns from the rows."""
+    pa, _ = _pyarrow()
+    i = data_schema.get_field_index("samples")
+    field = data_schema.field(i)
+    rest = pa.Table.from_pylist([{k: v for k, v in r.items() if k != "samples"} for r in rows],
+                                schema=data_schema.remove(i))
+    samples = pa.chunked_array([pa.FixedSizeListArray.from_arrays(pa.FixedSizeListArray.from_arrays(
+        pa.array(r["samples"].reshape(-1)), type=field.type.value_type), type=field.type) for r in rows],
+        type=field.type)
+    return rest.add_column(i, field, samples)
+
+
+def _leaves(name: str, typ) -> list:
+    """The Parquet column paths of an Arrow field (``samples.list.element.list.element``)."""
+    import pyarrow as pa
+
+    if pa.types.is_list(typ) or pa.types.is_fixed_size_list(typ):
+        return _leaves(f"{name}.list.element", typ.value_type)
+    if pa.types.is_struct(typ):
+        return [leaf for f in typ for leaf in _leaves(f"{name}.{f.name}", f.type)]
+    return [name]
+
+
+def shard_options(data_schema) -> dict:
+    """How an audio shard is written: zstd, the samples without a dictionary, float32
+    ones byte-stream-split (each byte of a sample with its like), int16 ones
+    delta-coded; on the demo, 18 % and 27 % under their raw size. Both are standard
+    Parquet encodings that pyarrow (so datasets and pandas) has long read."""
+    import pyarrow as pa
+
+    field = data_schema.field("samples")
+    leaf = _leaves("samples", field.type)[0]
+    floats = pa.types.is_floating(field.type.value_type.value_type)
+    return {"compression": "zstd",
+            "use_dictionary": [p for f in data_schema for p in _leaves(f.name, f.type) if p != leaf],
+            "column_encoding": {leaf: "BYTE_STREAM_SPLIT" if floats else "DELTA_BINARY_PACKED"}}
+
+
 def write_table(path: str, rows: list[dict], columns) -> None:
     """A metadata table: built with pandas, written by pyarrow with the explicit schema
     (so every split's table has the same types, whatever its values)."""
@@ -145,34 +216,52 @@ def write_table(path: str, rows: list[dict], columns) -> None:
 class HuggingFaceWriter(Writer):
     name = "hf"
     summary = "Hugging Face layout: Parquet audio shards (all channels), scenes and sources tables, the card."
-    options = (WriterOption("shard_size", "Most bytes per Parquet audio shard (e.g. 500MB).", DEFAULT_SHARD_SIZE,
-                            parse=parse_size),)
+    options = (WriterOption("shard_size", "Most bytes of audio per Parquet audio shard, the file and the samples "
+                            "counted uncompressed (e.g. 500MB).", DEFAULT_SHARD_SIZE, parse=parse_size),)
 
     def identity(self, doc) -> dict:
-        return {**super().identity(doc), "audio coding": str(doc.raw.get("audio_coding", "float32"))}
+        # "hf layout" 2: the samples column and the undecoded Audio feature (1: neither,
+        # the manifests before them say nothing): shards of the two do not mix
+        return {**super().identity(doc), "audio coding": str(doc.raw.get("audio_coding", "float32")),
+                "hf layout": LAYOUT}
 
     def check(self, job) -> None:
         _pyarrow()  # before anything is written
         self._coding = str(job.doc.raw.get("audio_coding", "float32"))
+        self._shape = None  # (C, T) of the first scene: the samples column's, in every split
+
+    def _schema_for(self, scene, shape: tuple):
+        """The audio shards' schema, fixed by the first scene; another shape is refused."""
+        if self._shape is None:
+            self._shape = shape
+            self._schema = schema(data_columns(self._coding, shape), HF_FEATURES)
+        elif shape != self._shape:
+            raise TselError(f"{scene.scene_id}: audio of {shape[0]} channels x {shape[1]} samples where the "
+                            f"export's first scene has {self._shape[0]} x {self._shape[1]}; the hf export's "
+                            f"samples column holds one shape")
+        return self._schema
 
     def write_split(self, job, split: str) -> SplitResult:
-        pa, pq = _pyarrow()
-        data_schema = schema(DATA_COLUMNS, HF_FEATURES)
+        _, pq = _pyarrow()
+        data_schema = None  # from the first scene (its shape)
         max_bytes = self.opts["shard_size"]
         files, scenes, sources, group = [], [], [], []
         shard_bytes = group_bytes = row = 0
 
         def flush(writer):
             if group:
-                writer.write_table(pa.Table.from_pylist(group, schema=data_schema))
+                writer.write_table(data_table(group, data_schema))
                 group.clear()
 
-        with job.open(split) as ds, Shards(job, lambda tmp: _ParquetShard(pq.ParquetWriter(tmp, data_schema),
-                                                                           flush)) as out:
+        def open_shard(tmp):
+            return _ParquetShard(pq.ParquetWriter(tmp, data_schema, **shard_options(data_schema)), flush)
+
+        with job.open(split) as ds, Shards(job, open_shard) as out:
             b = job.bar(len(ds), f"export {split}")
             for scene in job.scenes(ds):
                 item = data_row(scene, self._coding)
-                size = len(item["audio"]["bytes"])
+                data_schema = self._schema_for(scene, item["samples"].shape)
+                size = len(item["audio"]["bytes"]) + item["samples"].nbytes
                 if out.current is None or shard_bytes + size > max_bytes:
                     files.append(f"data/{split}/{len(files):05d}.parquet")
                     out.next(files[-1])
