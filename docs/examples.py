@@ -59,7 +59,7 @@ REPO = DOCS.parent
 # Groups are independent of each other: the tests run them side by side (the corpus group
 # first, so a second pytest worker has work while the first makes the base)
 GROUPS = {
-    "build": ("corpus", ["config.md", "scaling.md", "acoustics.md", "banks.md", "queries.md"]),
+    "build": ("corpus", ["config.md", "scaling.md", "acoustics.md", "banks.md", "queries.md", "handmade.md"]),
     "generate": ("dataset", ["commands/generate.md"]),
     "read": ("dataset", ["commands/check.md", "commands/inspect.md", "commands/stats.md", "reader.md", "format.md"]),
     "verify": ("dataset", ["commands/verify.md", "baseline.md"]),
@@ -73,6 +73,7 @@ BASE_PAGE = "commands/generate.md"
 PICTURES = {"work/inspect.png": "commands/img/inspect-test-000000.png", "work/stats.png": "commands/img/stats-demo.png",
             "work/inspect-bank.png": "commands/img/inspect-bank-test-000001.png",
             "work/sheet.png": "commands/img/inspect-sheet-test.png"}
+CACHE = Path("home/.cache/tsel-data")  # the sandbox user's cache (HOME is the sandbox's home/)
 _MARK = re.compile(r"^<!-- (run|file|no run)(?::\s*(.*?))? -->$")
 _FENCE = re.compile(r"^```(\w*)\s*$")
 # a stand-in for Slurm's sbatch: runs SCRIPT once per task of --array=A-B, in order
@@ -217,10 +218,15 @@ class Sandbox:
             (bin_dir / name).write_text(client)
         for name in ("sbatch", "tsel", "doc-python"):
             (bin_dir / name).chmod(0o755)
-        # a test session's clip-cache folder is not the user's: prepared clips go beside the audio
-        inherited = {k: v for k, v in os.environ.items() if k != "TSEL_CLIP_CACHE"}
-        self.env = {**inherited, "PATH": f"{bin_dir}:{venv}:{os.environ.get('PATH', '')}",
-                    "TSEL_CACHE_DIR": str(root / "cache"), "PYTHONHASHSEED": "0", "COLUMNS": "120",
+        # the sandbox is the user's home: its cache (prepared clips, clip checks) is
+        # ~/.cache/tsel-data, as a user sees it, not a test session's folders
+        inherited = {k: v for k, v in os.environ.items() if k not in ("TSEL_CLIP_CACHE", "TSEL_CACHE_DIR",
+                                                                         "XDG_CACHE_HOME")}
+        home = os.path.expanduser("~")
+        self.env = {**inherited, "PATH": f"{bin_dir}:{venv}:{os.environ.get('PATH', '')}", "HOME": str(root / "home"),
+                    # matplotlib's font list is the machine's: not built again per sandbox
+                    "MPLCONFIGDIR": os.environ.get("MPLCONFIGDIR", os.path.join(home, ".config", "matplotlib")),
+                    "PYTHONHASHSEED": "0", "COLUMNS": "120",
                     "TMPDIR": str(root / "tmp"),
                     "HF_HOME": str(root / "hf"), "HF_HUB_OFFLINE": "1"}  # datasets caches in the sandbox
         self.client = str(bin_dir / "doc-python")
@@ -282,7 +288,7 @@ def _share(src: str, dst: str) -> None:
 
 
 def _rename_remembered(cache: Path, old: Path, new: Path) -> None:
-    """The clip checks the base remembered (``TSEL_CACHE_DIR``, keyed by absolute path)
+    """The clip checks the base remembered (its ``~/.cache/tsel-data``, keyed by absolute path)
     renamed to the copy's files, so the group's commands find them as they would in the
     folder where generate.md ran (they print the same either way; they only check less)."""
     for db in cache.glob("*.sqlite"):
@@ -335,9 +341,14 @@ def run_group(group: str, base: Path | None = None, pages=None, check: bool = Fa
         if start == "dataset":
             root.rmdir()
             shutil.copytree(base, root, copy_function=_share, symlinks=True,
-                            ignore=shutil.ignore_patterns("base-output.txt", "cache"))
-            shutil.copytree(base / "cache", root / "cache")
-            _rename_remembered(root / "cache", base, root)
+                            ignore=shutil.ignore_patterns("base-output.txt", "home"))
+            # the remembered clip checks, renamed to the copy's files (the prepared clips,
+            # named by their clip's path, are made again where a page prepares)
+            cache = root / CACHE
+            cache.mkdir(parents=True)
+            for db in (base / CACHE).glob("*.sqlite"):
+                shutil.copyfile(db, cache / db.name)
+            _rename_remembered(cache, base, root)
         with Sandbox(root) as box:
             if start == "corpus":
                 box.run(Example("(corpus)", "run", "", "python", "from tsel_data.corpus.demo import synth_corpus\n"

@@ -14,13 +14,34 @@ from support.configs import DATASETS, SMALL
 # keep numerical libraries to one thread: the suite runs on 2 cores
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "PRA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
+
+# One temporary folder per run, made by the process that runs the session (pytest itself,
+# or xdist's controller, before it starts the workers) and removed by it when the run ends
+# (pytest_unconfigure), after every worker: the workers and every subprocess inherit it as
+# TMPDIR, so what anything of the run puts in "the temporary folder" (the commands' own
+# mkdtemp, a test module's, the caches below) goes there, not beside other runs in /tmp.
+# pytest's own folders (tmp_path, shared_dir) stay where pytest keeps its last runs.
+RUN_TMP = "TSEL_TEST_RUN_TMP"
+_OWN_RUN_TMP = None
+if not os.environ.get(RUN_TMP):
+    os.environ.setdefault("PYTEST_DEBUG_TEMPROOT", tempfile.gettempdir())
+    _OWN_RUN_TMP = os.environ[RUN_TMP] = tempfile.mkdtemp(prefix="tsel-test-run-")
+    atexit.register(shutil.rmtree, _OWN_RUN_TMP, True)  # should the run end before unconfigure
+os.environ["TMPDIR"] = tempfile.tempdir = os.environ[RUN_TMP]
 # remembered clip checks go to a folder of this run, not the user's cache (subprocesses
 # inherit it), and prepared clips (made by every full clip check) too, not beside the
-# shared demo corpus's audio; both removed when the run ends
-for _v, _prefix in (("TSEL_CACHE_DIR", "tsel-test-cache-"), ("TSEL_CLIP_CACHE", "tsel-test-clips-")):
+# shared demo corpus's audio; datasets' downloads and caches (HF_HOME) too
+for _v, _name in (("TSEL_CACHE_DIR", "cache"), ("TSEL_CLIP_CACHE", "clips"), ("HF_HOME", "hf")):
     if _v not in os.environ:
-        os.environ[_v] = tempfile.mkdtemp(prefix=_prefix)
-        atexit.register(shutil.rmtree, os.environ[_v], True)
+        os.environ[_v] = os.path.join(os.environ[RUN_TMP], _name)
+        os.makedirs(os.environ[_v], exist_ok=True)
+
+
+def pytest_unconfigure(config):
+    """The run's temporary folder goes when the run ends: in the process that made it (not
+    an xdist worker), once every worker is done."""
+    if _OWN_RUN_TMP and not hasattr(config, "workerinput"):
+        shutil.rmtree(_OWN_RUN_TMP, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")

@@ -26,6 +26,7 @@ PUBLIC_MODULES = {
     "labels": "tools.labels",
     "onthefly": "job.onthefly",
     "features": "dsp.features",
+    "handmade": "job.handmade",
 }
 
 

@@ -51,7 +51,7 @@ def fake_scene(audio, fmt="mic4", mics=None, n_frames=10):
     return Scene(scene_id="test-000000", split="test", index=0, query="a dog barks", audio=audio,
                  azimuth=np.zeros((n_src, n_frames), np.float32), elevation=np.zeros((n_src, n_frames), np.float32),
                  distance=np.ones((n_src, n_frames), np.float32), active=np.ones((n_src, n_frames), bool),
-                 mic_positions=square() if mics is None else mics, fs=FS, label_hop=0.1, format=fmt, record={})
+                 mic_positions=square() if mics is None else mics, fs=FS, label_hop=0.1, format=fmt, record=None)
 
 
 # --- features -------------------------------------------------------------------------------------

@@ -64,19 +64,65 @@ def decoded(tmp_path_factory, demo_corpus):
     return corpus, _shards(str(root / "a"))
 
 
+def _tree(root):
+    """Every file and folder below ``root``: its mode, size, mtime and bytes' sha256."""
+    out = {}
+    for folder, dirs, names in os.walk(root):
+        for n in dirs + names:
+            p = os.path.join(folder, n)
+            st = os.lstat(p)
+            out[os.path.relpath(p, root)] = (st.st_mode, st.st_size, st.st_mtime_ns,
+                                             None if os.path.isdir(p) else sha256_file(p))
+    return out
+
+
 def test_prepared_clips_give_the_same_scenes_without_decoding(tmp_path, decoded, monkeypatch):
     src, want = decoded
     corpus = shutil.copytree(src, str(tmp_path / "corpus"))
-    monkeypatch.delenv("TSEL_CLIP_CACHE", raising=False)  # beside the audio, as by default
+    before = _tree(corpus)
+    monkeypatch.delenv("TSEL_CLIP_CACHE", raising=False)  # the per-user cache, as by default
+    monkeypatch.setenv("TSEL_CACHE_DIR", str(tmp_path / "user-cache"))
     r = subprocess.run([sys.executable, "-m", "tsel_data.cli", "corpus", "prepare", "--preset", "demo",
                         "--corpus-dir", corpus, "--split", "train=3", "--split", "val=0", "--split", "test=0",
                         "--set", "audio.duration=2.0", "--quiet", "--workers", "1"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "prepared 60 clips" in r.stdout
-    assert os.listdir(os.path.join(corpus, "audio", ".tsel-clips"))
+    kept = os.path.join(tmp_path, "user-cache", "clips")
+    n, size = sum(len([f for f in fs if f.endswith(".npy")]) for _, _, fs in os.walk(kept)), 0
+    assert n == 60 and _tree(corpus) == before  # the corpus is left as it was
+    for folder, _, names in os.walk(kept):
+        size += sum(os.path.getsize(os.path.join(folder, f)) for f in names if f.endswith(".npy"))
+    assert f": 60 in {kept}, {size / 1e6:,.1f} MB" in r.stdout, r.stdout
     _forbid_decoding(monkeypatch)
     generate(_config(corpus, "corpus.prepare_on_check=false"), str(tmp_path / "b"), workers=1, progress=False)
     assert _shards(str(tmp_path / "b")) == want
+
+
+def test_generate_leaves_a_read_only_corpus_as_it_was(tmp_path, decoded, monkeypatch, tsel_cli):
+    """The full clip check prepares clips (44.1 kHz stereo: all of them) into the user's
+    cache, never beside the audio; a corpus the user may not write works the same."""
+    src, want = decoded
+    corpus = shutil.copytree(src, str(tmp_path / "corpus"))
+    monkeypatch.delenv("TSEL_CLIP_CACHE", raising=False)
+    monkeypatch.setenv("TSEL_CACHE_DIR", str(tmp_path / "user-cache"))
+    for folder, dirs, names in os.walk(corpus):
+        for n in names:
+            os.chmod(os.path.join(folder, n), 0o444)
+    for folder, dirs, _ in sorted(os.walk(corpus), reverse=True):
+        os.chmod(folder, 0o555)
+    try:
+        before = _tree(corpus)
+        code, out, err = tsel_cli.run("generate", "--preset", "demo", "--corpus-dir", corpus, "--split", "train=3",
+                                      "--split", "val=0", "--split", "test=0", "--set", "audio.duration=2.0",
+                                      "--set", "output.shard_size=3", "--out", str(tmp_path / "d"), "--workers", "1")
+        assert code == 0, err
+        assert _tree(corpus) == before
+    finally:
+        for folder, _, _ in os.walk(corpus):
+            os.chmod(folder, 0o755)
+    assert _shards(str(tmp_path / "d")) == want
+    assert re.search(r"train: 60 of 60 clips present \(100\.0 %\), 60 kept prepared", out + err), out + err
+    assert f"60 in {tmp_path / 'user-cache' / 'clips'}" in out + err
 
 
 def test_the_full_clip_check_prepares_the_clips_and_they_render_the_same_shards(tmp_path, decoded, monkeypatch):
@@ -225,9 +271,10 @@ def test_planning_says_which_clips_it_keeps_prepared_and_how_not_to(demo_corpus,
     code, out, err = tsel_cli.run("plan", *common, "--out", str(tmp_path / "a"))
     assert code == 0, err
     line = next(x for x in (out + err).splitlines() if x.startswith("train:"))  # the demo holds 16, 44.1 kHz and stereo clips
-    kept = re.search(r", (\d+) kept prepared for the scenes' rate and channels (\S+) ", line)
-    assert kept and int(kept[1]) >= 1 and kept[2] == os.environ["TSEL_CLIP_CACHE"], line
-    assert "corpus.prepare_on_check = false" in line
+    kept = re.search(r", (\d+) kept prepared$", line)
+    assert kept and int(kept[1]) >= 1, line
+    where = next(x for x in (out + err).splitlines() if x.startswith("prepared clips"))
+    assert f" in {os.environ['TSEL_CLIP_CACHE']}, " in where and "corpus.prepare_on_check = false" in where, where
     code, out, err = tsel_cli.run("plan", *common, "--out", str(tmp_path / "b"), "--set",
                                   "corpus.prepare_on_check=false")
     assert code == 0 and "clips present" in out + err and "kept prepared" not in out + err

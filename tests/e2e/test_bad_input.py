@@ -309,7 +309,7 @@ def test_bad_clip_policy_skip_and_fail(tmp_path):
     assert "train: 10 of 11 clips present (90.9 %), 6 of them bad" in skip.stdout
     missing = json.load(open(tmp_path / "skip" / "missing_clips.json", encoding="utf-8"))
     assert missing == {"splits": {"train": {"listed": 11, "missing": 1, "audio_dir": "audio",  # relative to the corpus
-                                            "clip_ids": ["dogA_0"]}}}
+                                            "audio_dirs": ["audio"], "clip_ids": ["dogA_0"]}}}
     bad = [json.loads(line) for line in open(tmp_path / "skip" / "bad_clips.jsonl", encoding="utf-8")]
     assert {b["clip_id"]: b["split"] for b in bad} == {f"{c}_0": "train" for c in POLICY_DEFECTS if c != "dogA"}
     for b in bad:

@@ -60,6 +60,33 @@ def test_audio_elsewhere_names_the_setting(tmp_path, capsys):
     assert 'splits.train.audio_dir = "downloads/train_wavs"' in err, err
 
 
+def test_train_files_in_audio_and_val_files_in_a_folder_of_their_own_are_all_found(tmp_path, capsys):
+    corpus = make_corpus(tmp_path / "c")
+    _move_audio(corpus, lambda split: os.path.join("audio", "val") if split == "val" else "audio")
+    out = ok(capsys, "check", "--preset", "demo", "--corpus-dir", corpus, *counts(2, 1, 1), *TINY, "--no-plan")
+    assert "missing" not in out and "train: 4 clips" in out and "val: 2 clips" in out, out
+
+
+def test_a_partial_download_is_said_as_such_without_a_setting_to_change(tmp_path, capsys):
+    corpus = make_corpus(tmp_path / "c")
+    gone = SPLITS["train"][:1]
+    for cid in gone:
+        os.remove(os.path.join(corpus, "audio", f"{cid}.wav"))
+    out = ok(capsys, "plan", "--preset", "demo", "--corpus-dir", corpus, *counts(2), *TINY, "--out", tmp_path / "o")
+    line = next(x for x in out.splitlines() if x.startswith("train:"))
+    n = len(SPLITS["train"])
+    assert line.startswith(f"train: {n - 1} of {n} clips present") and "a partial download" in line, line
+    assert "set " not in line, line
+
+
+def test_missing_files_under_other_names_in_the_audio_folder_name_the_template(tmp_path, capsys):
+    corpus = make_corpus(tmp_path / "c")
+    for cid in SPLITS["train"]:  # the download tool's names: AudioSet's Y and an extension no template tries
+        os.rename(os.path.join(corpus, "audio", f"{cid}.wav"), os.path.join(corpus, "audio", f"{cid}.aiff"))
+    _, out, err = tsel(capsys, "check", "--preset", "demo", "--corpus-dir", corpus, *counts(2), *TINY, "--no-plan")
+    assert "are in audio under other names (e.g. " in err and "corpus.audio_template" in err, err
+
+
 def _plain_corpus(root) -> str:
     """Own recordings: rec/*.wav and one all.csv (path,caption,split)."""
     root = str(root)

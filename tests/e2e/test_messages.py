@@ -103,6 +103,40 @@ def test_a_stop_signal_while_pool_workers_start_is_no_traceback(tmp_path):
     assert "Traceback" not in r.stderr and "Exception ignored" not in r.stderr, r.stderr
 
 
+def test_a_stop_while_the_dask_cluster_starts_leaves_no_leaked_semaphores(tmp_path):
+    # Ctrl-C while the cluster starts: a thread that does not block it (tqdm's monitor)
+    # takes it, and Python runs the handler in the main thread, inside LocalCluster(...).
+    # Before, the stop left the cluster half made and unnamed, never closed: multiprocessing's
+    # resource tracker then said "There appear to be 12 leaked semaphore objects" on the way out
+    pytest.importorskip("dask.distributed")
+    script = textwrap.dedent("""
+        import os, signal
+        import dask.distributed
+        from tsel_data.runtime import runner as ex
+
+        class Interrupted(dask.distributed.LocalCluster):
+            def __init__(self, *a, **k):
+                super().__init__(*a, **k)
+                old = signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+                signal.raise_signal(signal.SIGINT)  # its handler runs here, now
+                signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+        if __name__ == "__main__":
+            dask.distributed.LocalCluster = Interrupted
+            with ex.stop_signals():
+                try:
+                    with ex.Runner("dask-local", 2):
+                        print("not stopped")
+                except ex.Stopped as e:
+                    print("stopped", e.code, flush=True)
+                    os._exit(e.code)  # as `tsel` leaves after a stop
+    """)
+    # (the resource tracker holds stderr open until it has said its last)
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert r.stdout.split() == ["stopped", "130"], r.stdout + r.stderr
+    assert "leaked" not in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
 # --- §4 and §5: a full disk is one line that says how to go on for this command ---------------------
 
 
@@ -355,3 +389,43 @@ def test_no_export_names_a_folder_of_this_machine(dataset, tsel_cli, tmp_path, f
             assert not any(m in data for m in machine), os.path.join(d, n)
     if fmt == "dcase":
         assert "source" not in json.load(open(out / "classes.json"))
+
+
+def test_eval_dcase_names_the_missing_file_whole(dataset, tsel_cli, tmp_path):
+    """The example file name of a missing DCASE prediction is quoted whole, not 'id'.csv."""
+    (tmp_path / "pred").mkdir()
+    (tmp_path / "pred" / "fold1_test-000000.csv").write_text("")
+    line = tsel_cli.refused("eval", "--dcase", "--pred", tmp_path / "pred", dataset, "--split", "test")
+    assert "1 of 2 scenes of split 'test' have no prediction file, e.g. 'test-000001.csv';" in line, line
+
+
+@pytest.mark.parametrize("preset, splits", [("demo", "train, val, test"), ("demo-recorded", "train, test")])
+def test_a_split_the_config_has_not_is_named_with_those_it_has(tsel_cli, preset, splits, tmp_path):
+    for command in (["check"], ["generate", "--out", tmp_path / "out"]):
+        line = tsel_cli.refused(*command, "--preset", preset, "--split", "train=2", "--split", "valid=6")
+        assert line == (f"error: --split valid=6: there is no split 'valid'; the splits are {splits} (to make a new "
+                        f"one, add a [splits.valid] table to the config)"), line
+    assert not (tmp_path / "out").exists()
+    # a split the config's other layers define is one: --set makes it, --manifest serves every split named
+    from tsel_data.cli.options import load
+    made = load(preset, None, None, ["valid=6"], None, None, ["splits.valid.manifest='val.csv'"])
+    assert made.splits["valid"].count == 6
+    shared = load(preset, None, str(tmp_path), ["valid=6"], None, None, [], manifest=str(tmp_path / "m.csv"))
+    assert shared.splits["valid"].manifest == "m.csv"
+
+
+def test_a_clip_in_a_format_libsndfile_cannot_read_says_so(tsel_cli, tmp_path, monkeypatch):
+    """An .m4a (AAC) clip is named with what to do, not only libsndfile's 'Format not recognised'."""
+    corpus = _corpus(tmp_path / "corpus", monkeypatch)
+    for i in range(3):
+        (corpus / "audio" / f"clip{i}.wav").rename(corpus / "audio" / f"clip{i}.m4a")
+    (corpus / "audio" / "clip1.m4a").write_bytes(b"\x00\x00\x00\x20ftypM4A \x00\x00\x02\x00" + bytes(64))
+    line = tsel_cli.refused("check", *_config(tmp_path, corpus), "--set", "corpus.audio_template='{youtube_id}.m4a'")
+    assert "unreadable audio corpus/audio/clip1.m4a: " in line, line
+    assert ("; libsndfile does not read .m4a files (it reads WAV, FLAC, OGG Vorbis/Opus, MP3, AIFF and a "
+                         "few more): convert the clips, e.g. to FLAC with ffmpeg, and name them in "
+                         "corpus.audio_template") in line, line
+    from tsel_data.corpus.audio import load_clip
+    from tsel_data.errors import AudioError
+    with pytest.raises(AudioError, match=r"clip1.m4a: .*; libsndfile does not read .m4a files"):
+        load_clip(str(corpus / "audio" / "clip1.m4a"), 16000, 1.0)

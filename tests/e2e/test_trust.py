@@ -398,17 +398,23 @@ def test_special_files_are_refused_not_read(tmp_path, reference, what):
 def test_sigterm_stops_the_workers(cfg, tmp_path):
     out = str(tmp_path / "ds")
     p = subprocess.Popen([sys.executable, "-m", "tsel_data.cli", "generate", "--preset", "demo", "--corpus-dir",
-                          cfg.corpus.dir, "--out", out, "--quiet", "--workers", "2", "--split", "train=40",
-                          "--split", "val=0", "--split", "test=0", "--set", "output.shard_size=2"],
+                          cfg.corpus.dir, "--out", out, "--quiet", "--workers", "2", "--split", "train=400",
+                          "--split", "val=0", "--split", "test=0", "--set", "output.shard_size=2",
+                          "--allow-reuse"],  # minutes of work: it is stopped long before its end, on any machine
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.time() + patience(120)
-    while time.time() < deadline and not children(p.pid):
-        time.sleep(0.2)
-    kids = children(p.pid)
-    assert kids, "the pool never started"
-    time.sleep(1.0)
-    p.terminate()
-    p.wait(timeout=patience(60))
+    try:
+        deadline = time.time() + patience(120)
+        while time.time() < deadline and p.poll() is None and not children(p.pid):
+            time.sleep(0.2)
+        kids = children(p.pid)
+        assert kids, f"the pool never started (exit {p.poll()}: {p.stderr.read().decode()[-300:] if p.poll() else ''})"
+        time.sleep(1.0)
+        p.terminate()
+        p.wait(timeout=patience(60))
+    finally:  # a failed test leaves no run going on behind it
+        if p.poll() is None:
+            p.kill()
+            p.wait()
     gone = time.time() + patience(10)  # workers leave once they see the run is gone
     while time.time() < gone and any(alive(k) for k in kids):
         time.sleep(0.1)

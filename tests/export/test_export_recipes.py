@@ -27,11 +27,14 @@ def released(tmp_path_factory, demo_corpus):
     base = tmp_path_factory.mktemp("release")
     corpus = str(base / "corpus")
     shutil.copytree(demo_corpus, corpus)
-    cfg = load_config(preset="demo", corpus_dir=corpus, splits={"train": 4, "val": 0, "test": 2},
-                      overrides=["audio.duration=2.0", "output.shard_size=2"])
-    root = str(base / "ds")
-    generate(cfg, root, workers=1, progress=False)
-    rel = str(base / "rel")
+    return _release(base, corpus, {"train": 4, "val": 0, "test": 2}, ["audio.duration=2.0", "output.shard_size=2"])
+
+
+def _release(base, corpus: str, splits: dict, overrides: list) -> dict:
+    """A dataset of the demo preset made from ``corpus`` in ``base/ds``, and its release ``base/rel``."""
+    root, rel = str(base / "ds"), str(base / "rel")
+    generate(load_config(preset="demo", corpus_dir=corpus, splits=splits, overrides=overrides), root, workers=1,
+             progress=False)
     export("recipes", root, rel)
     return {"base": base, "corpus": corpus, "root": root, "rel": rel}
 
@@ -147,3 +150,112 @@ def test_rebuild_mistakes_are_one_line(released, tmp_path, capsys, argv, message
     assert ex.value.code == 2 and err.count("\n") == 1 and message in err, err
     with pytest.raises(TselError, match="is not a recipe release"):
         rebuild(released["root"], str(tmp_path / "p"), corpus_dir=released["corpus"])
+
+
+# --- releases rebuild from any copy (issue 41) ------------------------------------------------
+
+def _ids(corpus: str) -> dict[str, list[str]]:
+    """{split: youtube ids} of the demo corpus' manifests."""
+    import csv
+
+    out = {}
+    for split in ("train", "val", "test"):
+        with open(os.path.join(corpus, f"{split}.csv"), newline="", encoding="utf-8") as f:
+            out[split] = list(dict.fromkeys(r["youtube_id"] for r in csv.DictReader(f)))
+    return out
+
+
+def _lay_out(src: str, dst: str, where, per_split: bool = False) -> str:
+    """A copy of the corpus ``src`` (its audio in ``audio/``, or ``audio/{split}/`` when
+    ``per_split``) at ``dst``: the manifests, and each split's clip at ``where(split,
+    id)`` (relative to ``dst``; None: left out)."""
+    os.makedirs(dst)
+    for split, ids in _ids(src).items():
+        shutil.copy(os.path.join(src, f"{split}.csv"), dst)
+        for cid in ids:
+            rel = where(split, cid)
+            if rel:
+                os.makedirs(os.path.dirname(os.path.join(dst, rel)), exist_ok=True)
+                shutil.copy(os.path.join(src, "audio", *([split] if per_split else []), f"{cid}.wav"),
+                            os.path.join(dst, rel))
+    return dst
+
+
+@pytest.fixture(scope="module")
+def released_per_split(tmp_path_factory, demo_corpus):
+    """A dataset made from a corpus whose audio is in a folder per split (audio/{split}/),
+    and its recipe release: the layout of the issue's report."""
+    base = tmp_path_factory.mktemp("release-per-split")
+    corpus = _lay_out(demo_corpus, str(base / "corpus"), lambda split, cid: f"audio/{split}/{cid}.wav")
+    return _release(base, corpus, {"train": 3, "val": 0, "test": 2}, ["audio.duration=1.0", "output.shard_size=3"])
+
+
+SPLIT_WORDS = {"train": "training", "test": "evaluation"}
+LAYOUTS = {
+    "flat": lambda split, cid: f"{cid}.wav",
+    "flat-in-audio": lambda split, cid: f"audio/{cid}.wav",
+    "Y-prefixed": lambda split, cid: f"audio/Y{cid}.wav",
+    "other-split-folders": lambda split, cid: f"downloads/{SPLIT_WORDS.get(split, split)}/{cid}.wav",
+}
+
+
+@pytest.mark.parametrize("layout", sorted(LAYOUTS))
+def test_a_release_rebuilds_bit_for_bit_from_a_copy_laid_out_otherwise(released_per_split, layout, capsys):
+    rel, base = released_per_split["rel"], released_per_split["base"]
+    copy = _lay_out_from(released_per_split["corpus"], str(base / f"copy-{layout}"), LAYOUTS[layout])
+    out = str(base / f"rebuilt-{layout}")
+    code = _main(["generate", "--from", rel, "--corpus-dir", copy, "--out", out, "--quiet", "--workers", "1"])
+    printed = capsys.readouterr()
+    assert code == 0, printed.err
+    assert "train: 3 identical, 0 differs, 0 substituted, 0 not-buildable" in printed.out, printed.out
+    assert "test: 2 identical" in printed.out and "0 missing" in printed.out, printed.out
+    rep = json.loads(open(os.path.join(out, "rebuild.json")).read())
+    assert rep["clips"]["found elsewhere"] == len(rep["found"]) > 0 and rep["clips"]["missing"] == 0
+    name, where = next(iter(rep["found"].items()))
+    assert os.path.isfile(os.path.join(copy, where)) and name.startswith("audio/")
+    assert check_against_release(out, rel).ok
+    with open_dataset(released_per_split["root"], "test") as a, open_dataset(out, "test") as b:
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x.audio, y.audio)
+            assert x.record.to_json() == y.record.to_json()  # the release's names, not the copy's
+
+
+def test_a_copy_missing_every_clip_builds_nothing_and_says_so(released_per_split, capsys):
+    base = released_per_split["base"]
+    copy = _lay_out_from(released_per_split["corpus"], str(base / "copy-empty"), lambda split, cid: None)
+    out = str(base / "rebuilt-empty")
+    code = _main(["generate", "--from", released_per_split["rel"], "--corpus-dir", copy, "--out", out, "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "0 of the release's 5 scenes can be built, fewer than --min-scenes 1" in err and "is missing" in err, err
+    assert not os.path.exists(os.path.join(out, "dataset.json"))
+    rep = json.loads(open(os.path.join(out, "rebuild.json")).read())
+    assert rep["clips"]["missing"] == len(load_release(released_per_split["rel"]).clips()) and rep["stopped"]
+
+
+def test_a_rebuild_that_would_make_fewer_scenes_than_asked_stops_before_rendering(released_per_split, capsys):
+    rel, base = released_per_split["rel"], released_per_split["base"]
+    uses = clip_uses(rel)
+    gone = sorted(uses, key=lambda c: (-len(uses[c]), c))[0]  # the most used clip
+    copy = _lay_out_from(released_per_split["corpus"], str(base / "copy-holed"),
+                         lambda split, cid: None if gone.endswith(f"/{cid}.wav") else f"{cid}.wav")
+    out = str(base / "rebuilt-holed")
+    code = _main(["generate", "--from", rel, "--corpus-dir", copy, "--out", out, "--quiet", "--min-scenes", "100%"])
+    err = capsys.readouterr().err
+    assert code == 2 and f"{5 - len(uses[gone])} of the release's 5 scenes can be built" in err, err
+    assert not os.path.exists(os.path.join(out, "dataset.json"))
+    code = _main(["generate", "--from", rel, "--corpus-dir", copy, "--out", out, "--quiet", "--workers", "1",
+                  "--min-scenes", str(5 - len(uses[gone]))])  # tolerated: the same folder, resumed
+    assert code == 0, capsys.readouterr().err
+    with open_dataset(out, "test") as ds:
+        assert len(ds) == 2 - sum(s.startswith("test") for s in uses[gone])
+
+
+def _lay_out_from(corpus: str, dst: str, where) -> str:
+    return _lay_out(corpus, dst, where, per_split=True)
+
+
+def _main(argv) -> int:
+    with pytest.raises(SystemExit) as ex:
+        main(argv)
+    return ex.value.code

@@ -6,7 +6,8 @@ from click.testing import CliRunner
 
 from support.datasets import make_dataset
 from tsel_data.cli.eval import eval_cmd
-from tsel_data.tools.evaluate import PredictionError, evaluate, write_predictions
+from tsel_data.core.geometry import azimuth_difference, circular_mean
+from tsel_data.tools.evaluate import PredictionError, evaluate, summarise, write_predictions
 from tsel_data.tools.labels import gaussian_target
 from tsel_data.store import open_dataset
 
@@ -63,6 +64,28 @@ def test_known_wrong_prediction_wraps_around(ds, tmp_path):
     assert r.overall["acc5"] == pytest.approx(1 / 17)
     assert r.overall["acc10"] == pytest.approx(2 / 17)
     assert r.overall["acc20"] == pytest.approx(16 / 17)
+
+
+def test_predictions_exactly_on_a_threshold_count_for_it(tmp_path):
+    """Predictions exactly 5 deg off score acc@5 = 100 %: against the circular mean of a
+    static target's frames such an error computes as 5.000000000000028 (docs/reader.md)."""
+    on_edge = {"test-000000": -34.3613395690918, "test-000001": -158.59291076660156}
+    make_dataset(tmp_path / "ds", splits={"test": 3}, moving={"test-000002"}, target_az=on_edge)
+    truth = _truth(tmp_path / "ds")
+    for sid in on_edge:  # what used to miss acc@5: the truth is the mean over the active frames
+        s = truth[sid]
+        assert azimuth_difference(on_edge[sid] + 5.0, circular_mean(s.azimuth[0][s.active[0]].astype(float))) > 5.0
+    rows = []
+    for sid, s in truth.items():
+        az = s.azimuth[0].astype(np.float64)
+        rows.append({"scene_id": sid, "azimuth": az + 5.0 if s.target_moving else float(az[0]) + 5.0})
+    r = evaluate(tmp_path / "ds", "test", _write(tmp_path, rows))
+    assert r.overall["mae"] == pytest.approx(5.0, abs=1e-9)
+    assert (r.overall["acc5"], r.overall["acc10"], r.overall["acc20"]) == (1.0, 1.0, 1.0)
+    assert r.format_text().splitlines()[2].endswith("100.0%   100.0%   100.0%")
+    # the tolerance covers rounding only: a thousandth of a degree over still misses
+    row = summarise([np.array([5.000000000000028, 5.001, 10.0 + 1e-9, 20.01])])
+    assert (row["acc5"], row["acc10"], row["acc20"]) == (0.25, 0.75, 0.75)
 
 
 def test_distribution_and_static_per_frame(ds, tmp_path):

@@ -127,7 +127,7 @@ def test_srp_map_peaks_at_the_source():
 
 
 def test_gcc_phat_shape_and_lag():
-    fs, n, delay = 24000, 24000, 5
+    n, delay = 24000, 5
     rng = np.random.default_rng(1)
     s = rng.standard_normal(n + delay)
     x = np.stack([s[delay:], s[:-delay], s[delay:]]).astype(np.float32)  # ch1 hears it 5 samples later
@@ -148,3 +148,25 @@ def test_cli_fail_under_and_json(tmp_path):
     assert doc["splits"]["train"]["agree"] == 2
     res = CliRunner().invoke(verify_cmd, [str(tmp_path), "--fail-under", "0.9"])
     assert res.exit_code == 1 and "train-000000" in res.output
+
+
+def test_a_report_in_critical_distances_says_what_one_is():
+    from tsel_data.tools.verify import CRITICAL_DISTANCE, VerifyReport
+
+    def split(disagree=(), not_judged=None):
+        return {"scenes": 2, "tested": 2, "agree": 2 - len(disagree), "rate": 1 - len(disagree) / 2,
+                "median_error": 1.0, "untested": [], "disagree": list(disagree), "not_judged": not_judged or {},
+                "loudest_checked": 0, "loudest_agree": 0, "skipped": []}
+
+    far = {"scene_id": "train-000011", "sources": [{"source": 0, "role": "target", "label": -20.0,
+                                                    "estimate": -63.0, "error": 43.0, "reverb_ratio": 2.8}]}
+    text = VerifyReport(20.0, {"train": split([far])}).format_text()
+    assert "(error 43.0, 2.8 critical distances away)" in text
+    assert text.splitlines()[-1] == CRITICAL_DISTANCE
+    assert CRITICAL_DISTANCE.startswith("critical distance: how far from a source its direct sound is as loud as the "
+                                        "room's reverberant sound, 0.057·sqrt(V / RT60) m")
+    # the reason "more than 4 critical distances away" says it too; a report that names none does not
+    assert CRITICAL_DISTANCE in VerifyReport(20.0, {"train": split(not_judged={"reverberant": 1})}).format_text()
+    unknown_room = {**far, "sources": [{**far["sources"][0], "reverb_ratio": None}]}
+    assert "critical" not in VerifyReport(20.0, {"train": split([unknown_room])}).format_text()
+    assert "critical" not in VerifyReport(20.0, {"train": split()}).format_text()

@@ -75,4 +75,4 @@ def _print(kind: str, lines: list[str]) -> None:
     for line in lines[:SHOW]:
         click.echo(f"{kind}: {say(line)}", err=True)
     if len(lines) > SHOW:
-        click.echo(f"{kind}: ... and {len(lines) - SHOW} more (--json lists all)", err=True)
+        click.echo(f"{kind}: ... and {len(lines) - SHOW:,} more (--json lists all)", err=True)

@@ -39,7 +39,7 @@ def synth(out_dir, seed, clips_per_type, force):
 @force_option
 def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, workers, quiet, force):
     """Decode, mix down and resample every clip a config uses, once, for fast scenes
-    (kept beside the audio in .tsel-clips/, or in $TSEL_CLIP_CACHE). Scenes are the same
+    (kept in $TSEL_CLIP_CACHE, else in ~/.cache/tsel-data/clips; never in the corpus). Scenes are the same
     bytes with or without; they are just made faster. A prepared clip that no longer
     matches its clip (or was changed) is made again. The full clip check of `tsel
     generate` does this too (corpus.prepare_on_check)."""
@@ -48,11 +48,15 @@ def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, work
 
     from tqdm import tqdm
 
-    from ..plan.catalog import build_catalog, prepare_corpus, resolve_corpus_dir
-    from ..corpus.prepared import CACHE_ENV
+    from ..plan.catalog import build_catalog, prepare_corpus, prepared_line, resolve_corpus_dir
+    from ..corpus.prepared import CACHE_ENV, prepared_root
+    from ..errors import TselError
     from ..store.layout import Layout
     from ..store.outputs import refuse_inside
 
+    if prepared_root() is None:
+        raise TselError(f"TSEL_CACHE_DIR=off keeps no prepared clips: set {CACHE_ENV}=DIR to name a folder "
+                               f"for them")
     if os.environ.get(CACHE_ENV):  # the folder the user names; files in it are named by their clip's hash
         refuse_inside(os.environ[CACHE_ENV], force, f"${CACHE_ENV} ", itself=True)
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
@@ -62,8 +66,9 @@ def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, work
     catalog = build_catalog(checking, folder, workers=worker_count(workers))
     with tqdm(total=sum(len(c) for c in catalog.clips.values()), unit="clip", desc="prepare", disable=quiet) as bar:
         counts = prepare_corpus(cfg, catalog.clips, worker_count(workers), progress=lambda: bar.update())
-    click.echo(f"prepared {counts['made']} clips ({counts['kept']} already were) for {cfg.audio.fs} Hz, "
+    click.echo(f"prepared {counts['made']:,} clips ({counts['kept']:,} already were) for {cfg.audio.fs} Hz, "
                f"{cfg.audio.duration:g} s scenes")
+    click.echo(prepared_line(how_not=False))
 @corpus.command("embed")
 @config_options
 @click.option("--out", "out_file", required=True, type=click.Path(dir_okay=False), help="The .npz to write.")
@@ -84,7 +89,8 @@ def embed_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, ou
 
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validate=False)
     with claim_output(out_file, force, "tsel corpus embed"):  # refused before the model runs, not after
-        captions = corpus_captions(cfg, tempfile.mkdtemp(prefix="tsel-demo-corpus-"))
+        with tempfile.TemporaryDirectory(prefix="tsel-demo-corpus-") as demo:  # the demo corpus, when it is one
+            captions = corpus_captions(cfg, demo)
         vectors = embed(captions, model_dir or default_model_dir(), batch=batch)
         write_embeddings(out_file, captions, vectors)
     click.echo(f"{len(captions)} captions, {vectors.shape[1]}-d vectors in {out_file}; use it with "

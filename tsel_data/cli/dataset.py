@@ -23,31 +23,35 @@ from .options import (allow_reuse_option, config_options, executor_options, load
               "export recipes`) from --corpus-dir, reporting scene by scene (rebuild.json).")
 @click.option("--missing", type=click.Choice(values(MissingClipPolicy)), default="skip", show_default=True,
               help="With --from: leave out scenes whose clip is missing, or substitute one (recorded).")
+@click.option("--min-scenes", default="1", show_default=True, metavar="N|P%",
+              help="With --from: the fewest scenes the rebuild must make, a count or a share of the release's "
+                   "(e.g. 95%); fewer stops it before rendering (exit 2, no dataset).")
 @manifest_option
 @allow_reuse_option
 @executor_options
 def generate_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_dir, workers, resume, grow, force,
-                 quiet, release, missing, manifest, allow_reuse, executor, scheduler):
+                 quiet, release, missing, min_scenes, manifest, allow_reuse, executor, scheduler):
     """Plan, render and finalize a dataset in one go."""
     from ..job.pipeline import generate
 
     if release:
-        return _rebuild(release, out_dir, corpus_dir, bank, missing, workers, quiet, force, executor, scheduler,
-                        preset or config_path or splits or seed is not None or overrides or grow or manifest)
+        return _rebuild(release, out_dir, corpus_dir, bank, missing, min_scenes, workers, quiet, force, executor,
+                        scheduler, preset or config_path or splits or seed is not None or overrides or grow or manifest)
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides, manifest=manifest)
     s = generate(cfg, out_dir, workers=worker_count(workers), resume=resume, progress=not quiet, executor=executor,
                  scheduler=scheduler, grow=grow, force=force, report=_report, allow_reuse=allow_reuse)
     total = sum(s["splits"].values())
     rate = sum(s["rendered_now"].values()) / s["render_seconds"] if s["render_seconds"] > 0 else 0.0
-    click.echo(f"dataset {cfg.name} in {out_dir}: " + ", ".join(f"{k} {v}" for k, v in s["splits"].items())
-               + f" scenes ({total} total)")
+    click.echo(f"dataset {cfg.name} in {out_dir}: " + ", ".join(f"{k} {v:,}" for k, v in s["splits"].items())
+               + f" scenes ({total:,} total)")
     click.echo(f"  plan {s['plan_seconds']:.1f} s, render {s['render_seconds']:.1f} s ({rate:.2f} scenes/s), "
-               f"{s['bytes'] / 1e6:.1f} MB on disk" + ("" if cfg.recorded.on else f", {s['bad_clips']} bad clips skipped")
+               f"{s['bytes'] / 1e6:.1f} MB on disk" + ("" if cfg.recorded.on else f", {s['bad_clips']:,} bad clips skipped")
                + (" (see bad_clips.jsonl)" if s["bad_clips"] else "")
-               + (f", {s['missing_clips']} clips missing (see missing_clips.json)" if s["missing_clips"] else ""))
+               + (f", {s['missing_clips']:,} clips missing (see missing_clips.json)" if s["missing_clips"] else ""))
 
 
-def _rebuild(release, out_dir, corpus_dir, bank, missing, workers, quiet, force, executor, scheduler, planned) -> None:
+def _rebuild(release, out_dir, corpus_dir, bank, missing, min_scenes, workers, quiet, force, executor, scheduler,
+             planned) -> None:
     """``tsel generate --from REL``: the release's plan, rendered here, held against it."""
     from ..job.rebuild import rebuild
 
@@ -55,9 +59,13 @@ def _rebuild(release, out_dir, corpus_dir, bank, missing, workers, quiet, force,
         raise TselError("--from takes its config and plan from the release: drop --preset, --config, --split, "
                         "--seed, --set, --manifest and --grow")
     rep = rebuild(release, out_dir, corpus_dir, bank, missing, workers=worker_count(workers), progress=not quiet,
-                  force=force, executor=executor, scheduler=scheduler)
+                  force=force, executor=executor, scheduler=scheduler, min_scenes=min_scenes)
+    c = rep["clips"]
+    moved = next(iter(rep["found"].items()), None)
+    click.echo("clips: " + ", ".join(f"{v:,} {k}" for k, v in c.items())
+               + (f" (e.g. {moved[0]} is {moved[1]} in the copy)" if moved else ""))
     for split, c in rep["splits"].items():
-        click.echo(f"{split}: " + ", ".join(f"{v} {k}" for k, v in c.items()))
+        click.echo(f"{split}: " + ", ".join(f"{v:,} {k}" for k, v in c.items()))
     for o in [o for o in rep["scenes"] if o["status"] != "identical"][:10]:
         click.echo(f"  {o['scene_id']}: {o['status']}" + (f" ({', '.join(o['parts'])})" if o["parts"] else "")
                    + (f": {o['why']}" if o["why"] else ""))
@@ -90,7 +98,7 @@ def plan_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out
                           allow_reuse=allow_reuse)
     n_shards = len(shard_tasks(counts, cfg.output.shard_size))
     # the disk is checked by the commands that write audio: rendering may happen elsewhere
-    click.echo("planned " + ", ".join(f"{k} {v}" for k, v in counts.items()) + f" scenes in {n_shards} shards "
+    click.echo("planned " + ", ".join(f"{k} {v:,}" for k, v in counts.items()) + f" scenes in {n_shards:,} shards "
                f"(0-{n_shards - 1}) in {out_dir}/plan; rendered, they take about "
                f"{estimate_bytes(cfg) / 1e9:.2f} GB")
 

@@ -64,7 +64,8 @@ def load(preset, config_path, corpus_dir, splits, seed, bank, overrides, validat
 
 # `tsel generate` options that steer a run, not what it makes: `tsel check` takes them too, so
 # a generate command line can be checked as it is (docs/commands/check.md)
-RUN_ONLY = ("resume", "grow", "force", "quiet", "release", "missing", "allow_reuse", "executor", "scheduler")
+RUN_ONLY = ("resume", "grow", "force", "quiet", "release", "missing", "min_scenes", "allow_reuse", "executor",
+            "scheduler")
 
 
 def run_only_options(f):
@@ -76,6 +77,7 @@ def run_only_options(f):
         click.option("--quiet", is_flag=True, help="No progress bars (they show only on a terminal anyway)."),
         click.option("--from", "release", type=click.Path(file_okay=False), hidden=True),
         click.option("--missing", type=click.Choice(values(MissingClipPolicy)), hidden=True),
+        click.option("--min-scenes", hidden=True),
         click.option("--allow-reuse", is_flag=True, help="Accepted as `tsel generate` takes it; the check warns of "
                      "reuse either way."),
         click.option("--executor", type=click.Choice(values(Executor)), hidden=True),

@@ -81,12 +81,16 @@ def load_config(preset: str | None = None, path: str | None = None, overrides=()
         layers.append(("--bank", {"room": {"bank": bank}}))
     if seed is not None:
         layers.append(("--seed", {"seed": seed}))
+    defined = _split_names(layers)
     for name, count in (splits or {}).items():
+        if defined and name not in defined and not manifest:
+            # a new name would be a split without a manifest; most likely a misspelt one
+            raise ConfigError(f"--split {_printable(name)}={count}: there is no split {name!r}; the splits are "
+                              f"{', '.join(defined)} (to make a new one, add a [splits.{_printable(name)}] table to "
+                              f"the config)")
         layers.append((f"--split {name}={count}", {"splits": {name: {"count": count}}}))
     if manifest:
-        named = set()
-        for _, table in layers:
-            named |= set((table.get("splits") or {}) if isinstance(table.get("splits"), dict) else ())
+        named = set(_split_names(layers))
         layers.append(("--manifest", {"corpus": {"format": "auto"},
                                       "splits": {n: {"manifest": manifest} for n in sorted(named)}}))
     raw: dict = {}
@@ -133,6 +137,15 @@ def parse_config(raw: dict, where: str = "config", validate: bool = True, stored
 
 
 # --- helpers -----------------------------------------------------------------------------
+
+
+def _split_names(layers) -> list[str]:
+    """The split names the (label, table) layers define, in the order they first appear."""
+    names: dict[str, None] = {}
+    for _, table in layers:
+        if isinstance(table.get("splits"), dict):
+            names.update(dict.fromkeys(table["splits"]))
+    return list(names)
 
 
 def _read_user_file(path: str) -> dict:

@@ -52,9 +52,10 @@ class CorpusConfig:
                          choices=CorpusFormat)
     dir: str = option("", "folder with the manifests (and audio); `--corpus-dir` sets it; `\"builtin:demo\"` "
                           "synthesises the demo corpus into `OUT/demo-corpus`", path=True)
-    audio_dir: str = option("", "audio folder, relative to `dir`; default `dir/audio` if it exists, else `dir`, and "
-                                "when that one holds no audio file itself, a folder named for the split in it or in "
-                                "`dir` (`audio/train`, `audio/val`, Clotho's `development`)")
+    audio_dir: str = option("", "audio folder, relative to `dir`; default: each clip is looked for in the folders "
+                                "named for its split (`audio/train`, `audio/val`, Clotho's `development`, in `dir/audio` "
+                                "or `dir`), then in `dir/audio` if it exists, else `dir`: every download layout, even "
+                                "train files in `audio/` and val files in `audio/val/`")
     audio_template: str = option("", "audio file name pattern, or a list of patterns tried in order for each clip "
                                      "(the first file that exists is used); empty means the reader's default (for "
                                      "AudioCaps the usual download names, `{youtube_id}.wav`, `Y{youtube_id}.wav`, "
@@ -68,7 +69,9 @@ class CorpusConfig:
     prepare_on_check: bool = option(True, "with `check = \"full\"`, write each clip's prepared form (`tsel corpus "
                                           "prepare`) from the same decode, for every clip scenes would resample or "
                                           "mix down: real 44.1 kHz stereo corpora then render as fast as prepared "
-                                          "ones (`tsel check` never writes them)", new=True)
+                                          "ones. They go to `$TSEL_CLIP_CACHE`, else the per-user cache "
+                                          "(`~/.cache/tsel-data/clips`), never into the corpus (`tsel check` never "
+                                          "writes them)", new=True)
     fingerprint: str = option("stat", "what a shard's seal records of each clip and bank file it read, so "
                                       "`--resume` renders again the shards whose inputs changed: `stat` (size and "
                                       "modification time; a file rewritten with both kept is not noticed) or `hash` "

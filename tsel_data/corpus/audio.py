@@ -27,6 +27,19 @@ RELATIVE_SILENCE = 1e-3  # -60 dB: what a mixdown or the scenes' band keeps of a
 # +80 dBFS. Float files may exceed full scale a little, never by this much: such samples
 # are not audio in full-scale units, and their squares overflow float32 in the mixer.
 MAX_PEAK = 1e4
+# Extensions libsndfile reads (soundfile.available_formats(), as ambience.AUDIO_SUFFIXES):
+# a clip that fails to open under another one (.m4a, .aac, .wma) gets told why.
+READ_SUFFIXES = frozenset("." + k.lower() for k in sf.available_formats()) | {".aif", ".oga", ".opus"}
+
+
+def unread_format(path: str) -> str:
+    """Why libsndfile could not open ``path`` when its extension is one it never reads
+    (``"; libsndfile does not read .m4a files ..."``), else ``""``."""
+    ext = os.path.splitext(path)[1].lower()
+    if not ext or ext in READ_SUFFIXES:
+        return ""
+    return (f"; libsndfile does not read {ext} files (it reads WAV, FLAC, OGG Vorbis/Opus, MP3, AIFF and a few "
+            f"more): convert the clips, e.g. to FLAC with ffmpeg, and name them in corpus.audio_template")
 
 
 def sample_problem(x: np.ndarray) -> str | None:
@@ -53,7 +66,8 @@ def load_clip(path: str, fs: int, duration: float, offset: float = 0.0) -> np.nd
                 f.seek(min(start, f.frames))
             x = f.read(frames=_span(duration, sr), dtype="float32", always_2d=True)
     except (sf.LibsndfileError, RuntimeError, OSError) as e:
-        raise AudioError(f"cannot read audio {path}: {e}; check the file or remove it from the manifest") from None
+        raise AudioError(f"cannot read audio {path}: {e}" + (unread_format(path) or "; check the file or remove it "
+                                                             "from the manifest")) from None
     problem = sample_problem(x)
     if problem:
         # corpus.check below "full" lets such clips through; never mix them into a scene
@@ -145,6 +159,7 @@ class ClipCheck:
     channels: int | None = None
     missing: bool = False  # the file does not exist (a partial download), not a bad file
     prepared: str | None = None  # the clip is good, but its prepared form is not (audio.keep_prepared)
+    kept: bool = False  # its prepared form is there after the check (made now or before)
 
 
 def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_channels: int,
@@ -175,7 +190,7 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
     try:
         info = sf.info(path)
     except (sf.LibsndfileError, RuntimeError, OSError) as e:
-        return ClipCheck(clip_id, f"unreadable audio {path}: {str(e).splitlines()[0]}")
+        return ClipCheck(clip_id, f"unreadable audio {path}: {str(e).splitlines()[0]}{unread_format(path)}")
     dur = info.frames / info.samplerate if info.samplerate else 0.0
     base = dict(duration=dur, samplerate=info.samplerate, channels=info.channels)
     if info.frames == 0:
@@ -218,7 +233,9 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
         return ClipCheck(clip_id, None, **base)
     made = (lambda: _as_scene_clip(read, sr, fs, int(round(duration * fs)))) if making else None
     prepared = keep_prepared(path, fs, duration, offset, prepare, making, made, deep=not prepare)
-    return ClipCheck(clip_id, None, **base, prepared=prepared)
+    # what is there, not what was meant: a cache folder that cannot be written keeps nothing
+    kept = making and prepared is None and prepared_state(path, fs, duration, offset) == "ok"
+    return ClipCheck(clip_id, None, **base, prepared=prepared, kept=kept)
 
 
 def wants_preparing(samplerate: int | None, channels: int | None, fs: int) -> bool:

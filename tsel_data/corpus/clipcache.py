@@ -6,15 +6,16 @@ it is kept in a small SQLite file keyed by the file's ``(path, size, mtime)`` an
 settings (level, minimum duration, channels, offset, scene duration). A file that is
 rewritten gets a new size or mtime and is checked again.
 
-Where: ``$TSEL_CACHE_DIR`` (``off`` disables the cache), else
-``$XDG_CACHE_HOME/tsel-data``, else ``~/.cache/tsel-data``. The cache only ever saves
-time: an unwritable or damaged cache file is ignored and every clip is checked.
+Where: ``clip-checks.sqlite`` in the per-user cache (:mod:`tsel_data.core.usercache`).
+The cache only ever saves time: an unwritable or damaged cache file is ignored and
+every clip is checked.
 """
 from __future__ import annotations
 
 import os
 import sqlite3
 
+from ..core.usercache import cache_dir
 from .audio import ClipCheck
 
 # Bump when check_clip's verdicts change meaning, so old verdicts are not reused.
@@ -22,15 +23,6 @@ CHECK_VERSION = 2  # 2: samples above audio.MAX_PEAK are a bad clip
 _SCHEMA = ("CREATE TABLE IF NOT EXISTS checks (path TEXT, size INTEGER, mtime_ns INTEGER, settings TEXT, "
            "problem TEXT, duration REAL, samplerate INTEGER, channels INTEGER, "
            "PRIMARY KEY (path, size, mtime_ns, settings))")
-
-
-def cache_dir() -> str | None:
-    """The cache folder, or None when ``TSEL_CACHE_DIR=off``."""
-    env = os.environ.get("TSEL_CACHE_DIR")
-    if env:
-        return None if env.lower() == "off" else env
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(base, "tsel-data")
 
 
 def settings_key(level: str, min_duration: float, max_channels: int, offset: float, duration: float | None,

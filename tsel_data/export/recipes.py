@@ -82,6 +82,8 @@ class RecipesWriter(Writer):
                         continue
                     for name, clip_id, captions in corpus_files(json.loads(line)):
                         entry = uses.setdefault(name, {"clip_id": clip_id, "captions": captions, "splits": []})
+                        if captions and not entry["captions"]:  # heard as noise first, a source too: its id
+                            entry.update(clip_id=clip_id, captions=captions)
                         if split not in entry["splits"]:
                             entry["splits"].append(split)
                         scenes_of[name] += 1

@@ -95,7 +95,7 @@ def _check_recorded(cfg: Config, out_dir, rep: CheckReport, plan: bool) -> Check
         rep.facts["splits"][split].update(planned=s["kept"], windows=s["windows"], recordings=s["recordings"],
                                           skipped=s["skipped"])
         for why, n in s["skipped"].items():
-            rep.warnings.append(f"split {split}: {n} of {s['candidates']} targets skipped: {why}")
+            rep.warnings.append(f"split {split}: {n:,} of {s['candidates']:,} targets skipped: {why}")
     if out_dir:
         counted = replace(cfg, splits={k: replace(sp, count=len(plans.get(k, []))) for k, sp in cfg.splits.items()})
         _check_space(counted, out_dir, rep, planned_with(Layout(out_dir), cfg))
@@ -181,7 +181,7 @@ def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: Chec
         if clips and cfg.on_bad_clip == "skip":
             # a partial download is normal: one line per split, not one per absent file
             rep.warnings.append(f"split {split}: {len(clips):,} of {scan.counts[split]['clips']:,} audio files are "
-                                f"missing from {scan.audio_dirs[split]} (first: {os.path.basename(clips[0].audio)}, "
+                                f"missing from {' or '.join(scan.audio_dirs[split])} (first: {os.path.basename(clips[0].audio)}, "
                                 f"{clips[0].origin}); those clips are skipped and listed in OUT/missing_clips.json"
                                 + (f"; {scan.hints[split]}" if split in scan.hints else ""))
     rep.warnings += scan.warnings

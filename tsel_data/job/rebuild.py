@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 from dataclasses import asdict, dataclass, field
 
@@ -28,7 +29,6 @@ from ..banks.scenes import resolve_bank
 from ..choices import MissingClipPolicy, values
 from ..config import parse_config
 from ..core.atomic import write_json, write_lines
-from ..core.digest import sha256_file
 from ..core.version import __version__
 from ..corpus.audio import check_clip
 from ..errors import DatasetError, TselError
@@ -43,6 +43,7 @@ from ..store.plans import has_plan, local_roots, plan_seal, read_plan_doc
 from ..store.reader import open_dataset
 from ..store.release import REBUILD_FILE, Release, differing_parts, load_release, scene_digest
 from .pipeline import check_ownership, finalize, render_shards
+from .relocate import VIEW, locate_clips, write_view
 
 POLICIES = values(MissingClipPolicy)
 STATUSES = ("identical", "differs", "substituted", "not-buildable")
@@ -70,19 +71,28 @@ class ClipState:
 
 def rebuild(release_dir: str, out_dir: str, corpus_dir: str | None = None, bank: str | None = None,
             missing: str = "skip", workers: int = 1, progress: bool = True, force: bool = False,
-            executor: str = "local", scheduler: str | None = None) -> dict:
+            executor: str = "local", scheduler: str | None = None, min_scenes: int | str = 1) -> dict:
     """Render the release ``release_dir`` into ``out_dir`` from the corpus at
     ``corpus_dir`` (and the RIR bank at ``bank``); returns the report written to
-    ``out_dir/rebuild.json``: ``splits`` ({split: {status: count}}) and ``scenes``
+    ``out_dir/rebuild.json``: ``splits`` ({split: {status: count}}), ``clips`` (how many
+    were found at their names, elsewhere in the copy, differing, missing), ``found``
+    ({release name: where it is in the copy} for the clips found elsewhere) and ``scenes``
     (every :class:`SceneOutcome`, in plan order).
+
+    The clips are found wherever the copy holds them (:mod:`tsel_data.job.relocate`).
+    ``min_scenes``: the fewest scenes the rebuild must make, a count or a share of the
+    release's (``"95%"``); when fewer can be built, it stops before rendering, with the
+    report (``stopped``) and no ``dataset.json``.
 
     Raises a TselError (one line) for a folder that is not a release, a corpus or bank
     not given or not there, an unknown ``missing`` policy, an ``out_dir`` that holds
-    anything but this rebuild (without ``force``).
+    anything but this rebuild (without ``force``), fewer buildable scenes than ``min_scenes``.
     """
     if missing not in POLICIES:
         raise TselError(f"--missing {missing!r}: choose one of {', '.join(POLICIES)}")
     rel = load_release(release_dir)
+    total = sum(len(rel.recipe_lines(s)) for s in rel.splits)
+    need = required_scenes(min_scenes, total)
     layout = Layout(out_dir)
     check_ownership(layout, force)
     os.makedirs(layout.plan_dir, exist_ok=True)
@@ -92,20 +102,64 @@ def rebuild(release_dir: str, out_dir: str, corpus_dir: str | None = None, bank:
         corpus = recorded_corpus(cfg, layout) if cfg.recorded.on else resolve_corpus_dir(cfg, layout.demo_corpus)
         if cfg.room.bank:
             resolve_bank(bank_request(cfg), layout.demo_bank)  # builds the built-in one, checks any other
-        clips = _clip_states(rel, corpus, cfg, progress)
+        found = locate_clips(rel.clips(), corpus, cfg, progress, skip=layout.root)
+        clips = _clip_states(rel, found, cfg)
+        if any(f.path and f.how != "name" for f in found.values()):  # read through links named as the release's
+            corpus = layout.path(VIEW)
+            write_view(corpus, found)
+            config["corpus"]["dir"] = VIEW
         plans, outcomes = _plan(rel, clips, missing, Roots(corpus=corpus))
+        report = _report(rel, release_dir, out_dir, missing, found, corpus_dir or corpus, outcomes)
+        built = sum(len(lines) for lines in plans.values())
+        if built < need:
+            gone = len(clips.missing)
+            why = next(iter(clips.missing.values()), "")
+            report["stopped"] = (f"{built:,} of the release's {total:,} scenes can be built, fewer than "
+                                 f"--min-scenes {min_scenes}" + (f" ({gone:,} clips missing or bad; the first: {why})"
+                                                                  if why else ""))
+            write_json(os.path.join(out_dir, REBUILD_FILE), report)
+            raise DatasetError(f"{report['stopped']}; nothing rendered, what was found where: "
+                               f"{os.path.join(out_dir, REBUILD_FILE)}; pass --corpus-dir with the copy that holds "
+                               f"the clips" + ("" if missing == "substitute" else ", or --missing substitute"))
         _write_plan(rel, layout, config, plans)
         render_shards(out_dir, workers=workers, progress=progress, executor=executor, scheduler=scheduler)
         finalize(out_dir)
         _compare(rel, out_dir, outcomes, clips)
-    report = {"tool": "tsel-data", "version": __version__, "release": os.path.relpath(
-        os.path.realpath(release_dir), os.path.realpath(out_dir)).replace(os.sep, "/"),
-              "release_version": rel.doc.get("version"), "missing": missing,
-              "splits": {s: {k: sum(o.split == s and o.status == k for o in outcomes) for k in STATUSES}
-                         for s in rel.splits},
-              "scenes": [asdict(o) for o in outcomes]}
+    report = _report(rel, release_dir, out_dir, missing, found, corpus_dir or corpus, outcomes)
     write_json(os.path.join(out_dir, REBUILD_FILE), report)
     return report
+
+
+def required_scenes(spec: int | str, total: int) -> int:
+    """The fewest scenes a rebuild must make: ``spec`` a count (``30``) or a share of the
+    release's ``total`` (``"95%"``), never more than the release holds."""
+    text = str(spec).strip()
+    try:
+        n = math.ceil(float(text[:-1]) * total / 100 - 1e-9) if text.endswith("%") else int(text)
+    except ValueError:
+        n = -1
+    if n < 0 or (text.endswith("%") and float(text[:-1]) > 100):
+        raise TselError(f"--min-scenes {spec}: give a count of scenes (e.g. 30) or a share of the release's "
+                        f"(e.g. 95%)")
+    return min(n, total)
+
+
+def _report(rel: Release, release_dir: str, out_dir: str, missing: str, found: dict, copy: str,
+            outcomes: list) -> dict:
+    """rebuild.json: per split, how many scenes came out how; the clips found, where."""
+    moved = {name: os.path.relpath(f.path, copy).replace(os.sep, "/") for name, f in sorted(found.items())
+             if f.path and f.how != "name"}
+    return {"tool": "tsel-data", "version": __version__,
+            "release": os.path.relpath(os.path.realpath(release_dir), os.path.realpath(out_dir)).replace(os.sep, "/"),
+            "release_version": rel.doc.get("version"), "missing": missing,
+            "splits": {s: {k: sum(o.split == s and o.status == k for o in outcomes) for k in STATUSES}
+                       for s in rel.splits},
+            "clips": {"at their names": sum(bool(f.path) and f.how == "name" for f in found.values()),
+                      "found elsewhere": len(moved),
+                      "differing": sum(bool(f.path) and not f.same for f in found.values()),
+                      "missing": sum(f.path is None for f in found.values())},
+            "found": moved,
+            "scenes": [asdict(o) for o in outcomes]}
 
 
 def _config_here(rel: Release, layout: Layout, corpus_dir: str | None, bank: str | None) -> dict:
@@ -132,22 +186,24 @@ def _config_here(rel: Release, layout: Layout, corpus_dir: str | None, bank: str
     return config
 
 
-def _clip_states(rel: Release, corpus: str, cfg, progress) -> ClipState:
+def _clip_states(rel: Release, found: dict, cfg) -> ClipState:
     """Which of the release's clips are missing from (or unreadable in) the copy, and
-    which differ from the release's bytes."""
+    which differ from the release's bytes (``found``: :func:`~tsel_data.job.relocate.locate_clips`)."""
     state = ClipState()
     c = cfg.corpus
     for name, entry in rel.clips().items():
-        path = os.path.join(corpus, name)
-        if not os.path.isfile(path):
-            state.missing[name] = f"{'file' if cfg.recorded.on else 'clip'} {entry['clip_id']} ({name}) is missing"
+        f = found[name]
+        if f.path is None:
+            where = "at that name" if cfg.recorded.on else "at that name, through its manifests and by file name"
+            state.missing[name] = (f"{'file' if cfg.recorded.on else 'clip'} {entry['clip_id']} ({name}) is missing "
+                                   f"from the copy (looked for {where})")
             continue
-        if os.path.getsize(path) == entry.get("bytes") and sha256_file(path) == entry.get("sha256"):
+        if f.same:
             continue
         state.changed.add(name)
         if cfg.recorded.on:  # a recording or its labels: the scenes' checksums tell what changed
             continue
-        check = check_clip(entry["clip_id"], path, "full", c.min_duration, c.max_channels)
+        check = check_clip(entry["clip_id"], f.path, "full", c.min_duration, c.max_channels)
         if check.problem:
             state.missing[name] = f"clip {entry['clip_id']} changed and is a bad clip now: {check.problem}"
     return state
@@ -160,7 +216,7 @@ def _plan(rel: Release, clips: ClipState, policy: str, roots: Roots) -> tuple[di
     plans, outcomes = {}, []
     for split in rel.splits:
         pool = sorted(n for n, e in entries.items() if split in e.get("splits", ()) and n not in clips.missing
-                      and n not in clips.changed)
+                      and n not in clips.changed and e.get("captions"))  # a clip heard only as noise has no caption
         lines = []
         for line in rel.recipe_lines(split):
             d = json.loads(line)
@@ -177,7 +233,9 @@ def _plan(rel: Release, clips: ClipState, policy: str, roots: Roots) -> tuple[di
                 outcomes.append(SceneOutcome(d["scene_id"], split, "", clips=names))
                 continue
             why = "; ".join(clips.missing[n] for n in gone)
-            if policy == MissingClipPolicy.SKIP or d.get("kind") == RECORDED:  # a recording has no stand-in
+            # a recording, or a clip the scene's noise plays, has no stand-in
+            if policy == MissingClipPolicy.SKIP or d.get("kind") == RECORDED or \
+                    not {s["audio"] for s in d["sources"]}.issuperset(gone):
                 outcomes.append(SceneOutcome(d["scene_id"], split, "not-buildable", why, clips=names))
                 continue
             done = _substitute(d, gone, pool, entries)

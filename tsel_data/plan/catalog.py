@@ -28,7 +28,7 @@ from ..corpus.audio import ClipCheck, check_clip, keep_prepared, prepare_clip, p
 from ..corpus.clip import Clip
 from ..corpus.clipcache import ClipCache, file_key, settings_key
 from ..corpus.manifests import AUDIO_EXTENSIONS, detect_format, read_manifest, split_aliases
-from ..corpus.prepared import CACHE_ENV
+from ..corpus.prepared import prepared_usage
 from ..errors import AudioError, ConfigError, ManifestError, TselError, broken_link, shown_path
 from ..runtime.pool import ordered_pool
 from ..runtime.runner import Runner
@@ -69,7 +69,7 @@ class CatalogScan:
     manifests, duplicate ids, bad clips under ``on_bad_clip = "fail"``, too few clips).
     warnings: one-line notes that do not stop a run (clips reused by many scenes).
     counts: split -> {"clips": listed, "missing": files absent, "bad": bad clips} for
-    the splits that were read. audio_dirs: split -> the folder its audio is read from.
+    the splits that were read. audio_dirs: split -> the folders its audio is looked for in.
     rates: split -> {rate: usable clips} below the scenes' rate. left_out: split -> clips
     below ``corpus.min_samplerate``. hints: split -> where its missing audio files seem
     to be, and the setting.
@@ -98,14 +98,23 @@ class CatalogScan:
                 line += f", {c['bad']:,} of them bad"
             if self.left_out.get(split):
                 line += f", {self.left_out[split]:,} left out (recorded below corpus.min_samplerate)"
-            if c.get("prepared"):  # files written into the user's corpus: said, with the way not to
-                where = os.environ.get(CACHE_ENV) or "in .tsel-clips/ beside their audio"
-                line += (f", {c['prepared']:,} kept prepared for the scenes' rate and channels {where} "
-                         f"(corpus.prepare_on_check = false: not)")
+            if c.get("prepared"):
+                line += f", {c['prepared']:,} kept prepared"
             if split in self.hints:
                 line += f"; {self.hints[split]}"
             out.append(line)
+        if any(c.get("prepared") for c in self.counts.values()):
+            out.append(prepared_line())
         return out
+
+
+def prepared_line(how_not: bool = True) -> str:
+    """Where prepared clips are kept and what they cost: files written for the user,
+    outside the corpus (``how_not``: said with the way not to)."""
+    root, n, size = prepared_usage()
+    return (f"prepared clips (decoded at the scenes' rate and channels once, not per scene): {n:,} in "
+            f"{shown_path(root)}, {size / 1e6:,.1f} MB"
+            + (" (set corpus.prepare_on_check = false to keep none)" if how_not else ""))
 
 
 def resolve_corpus_dir(cfg: Config, demo_dir: str) -> str:
@@ -152,17 +161,24 @@ def manifest_path(cfg: Config, split: str, corpus_dir: str) -> str:
                         f"splits.{split}.manifest to the file's name, or pass the --corpus-dir that holds it")
 
 
-def split_audio_dir(cfg: Config, split: str, corpus_dir: str) -> str:
-    """The folder a split's relative audio paths resolve against: ``splits.NAME.audio_dir``,
-    else ``corpus.audio_dir`` (both relative to the corpus folder), else ``corpus/audio``
-    if it exists, else the corpus folder; when that one holds no audio file itself, a
-    folder named for the split inside it or the corpus folder (:func:`split_subfolder`).
-    A folder the config names must exist."""
+def split_audio_dirs(cfg: Config, split: str, corpus_dir: str) -> list[str]:
+    """The folders a split's relative audio paths are looked for in, in order.
+
+    ``splits.NAME.audio_dir``, else ``corpus.audio_dir`` (both relative to the corpus
+    folder; a folder the config names must exist, and is the only one). Else every
+    download layout at once: the folders named for the split (``train``, ``training``,
+    ``development``; ``val``, ``validation``; ...) that hold audio, in ``audio/`` or the
+    corpus folder, then ``audio/`` (else the corpus folder) that all splits share. So
+    train files in ``audio/`` and val files in ``audio/val/`` are all found, as are
+    ``audio/{split}/``, Clotho's ``development/`` and a flat folder."""
     named = cfg.splits[split].audio_dir or cfg.corpus.audio_dir
     if not named:
         audio = os.path.join(corpus_dir, "audio")
-        base = audio if os.path.isdir(audio) else corpus_dir
-        return split_subfolder(base, corpus_dir, split) or base
+        shared = audio if os.path.isdir(audio) else corpus_dir
+        own = [d for folder in dict.fromkeys((shared, corpus_dir)) for name in split_aliases(split)
+               if _holds_audio(d := os.path.join(folder, name))]
+        rest = [corpus_dir] if shared != corpus_dir and _holds_audio(corpus_dir) else []
+        return own + [shared] + rest
     key = f"splits.{split}.audio_dir" if cfg.splits[split].audio_dir else "corpus.audio_dir"
     d = os.path.expanduser(named)
     d = d if os.path.isabs(d) else os.path.join(corpus_dir, d)
@@ -170,22 +186,7 @@ def split_audio_dir(cfg: Config, split: str, corpus_dir: str) -> str:
         folders = sorted(n for n in os.listdir(corpus_dir) if os.path.isdir(os.path.join(corpus_dir, n)))
         raise ManifestError(f"{key}: audio folder {named} not found in {corpus_dir} (its folders: "
                             f"{', '.join(folders[:8]) or 'none'}); set {key} to the folder that holds the audio")
-    return d
-
-
-def split_subfolder(base: str, corpus_dir: str, split: str) -> str | None:
-    """The folder named for ``split`` (``train``, ``training``, ``development``; ``val``,
-    ``validation``; ...) in ``base`` or ``corpus_dir`` that holds audio, when ``base``
-    holds no audio file itself: where several download tools put AudioCaps
-    (``audio/train/``) and Clotho unpacks (``development/``)."""
-    if _holds_audio(base):
-        return None
-    for folder in dict.fromkeys((base, corpus_dir)):
-        for name in split_aliases(split):
-            d = os.path.join(folder, name)
-            if os.path.isdir(d) and _holds_audio(d):
-                return d
-    return None
+    return [d]
 
 
 def _holds_audio(folder: str) -> bool:
@@ -196,39 +197,56 @@ def _holds_audio(folder: str) -> bool:
         return False
 
 
-HINT_SAMPLE = 50  # missing clips looked for elsewhere
 HINT_FOLDERS = 2000  # folders of the corpus looked into, at most
+HINT_DEPTH = 3  # ... and how deep
 
 
-def missing_hint(split: str, missing: list[Clip], audio_dir: str, corpus_dir: str) -> str:
-    """Where the audio files of a split that finds few of them seem to be: the folder
-    below the corpus that holds most of the first missing files (by name, any audio
-    extension), and the setting that reads them there; else the settings to look at."""
-    stems = {os.path.splitext(os.path.basename(c.audio))[0] for c in missing[:HINT_SAMPLE]}
-    stems |= {"Y" + s for s in stems}
-    here = os.path.abspath(audio_dir)
-    best, best_n = None, 0
+def missing_hint(split: str, listed: int, missing: list[Clip], audio_dirs: list[str], corpus_dir: str) -> str:
+    """What the missing audio files of a split are: every missing clip's file is looked
+    for by name (any audio extension, with or without AudioSet's ``Y``) in the folders
+    below the corpus. Most of them in one folder the split does not read: the setting
+    that reads it. In a folder it reads, under other names: the template. Nowhere: a
+    partial download, said as such when the split finds any file (its layout is right),
+    else the settings to look at."""
+    want: dict[str, int] = {}
+    for k, c in enumerate(missing):
+        stem = os.path.splitext(os.path.basename(c.audio))[0]
+        for name in (stem, "Y" + stem, c.id):
+            want.setdefault(name, k)
+    searched = {os.path.abspath(d) for d in audio_dirs}
+    best, best_found, example = None, set(), ""
+    top = corpus_dir.rstrip(os.sep).count(os.sep)
     for k, (folder, dirs, names) in enumerate(os.walk(corpus_dir)):
         dirs[:] = sorted(d for d in dirs if not d.startswith("."))
-        if k >= HINT_FOLDERS or folder.count(os.sep) - corpus_dir.rstrip(os.sep).count(os.sep) > 3:
+        if k >= HINT_FOLDERS or folder.count(os.sep) - top >= HINT_DEPTH:
             dirs[:] = []
-            continue
-        if os.path.abspath(folder) == here:
-            continue
-        n = sum(1 for m in names if m.lower().endswith(AUDIO_EXTENSIONS) and os.path.splitext(m)[0] in stems)
-        if n > best_n:
-            best, best_n = folder, n
+        found, first = set(), ""
+        for m in names:
+            stem, ext = os.path.splitext(m)
+            if ext.lower() in AUDIO_EXTENSIONS and stem in want:
+                found.add(want[stem])
+                first = first or m
+        if len(found) > len(best_found):
+            best, best_found, example = folder, found, first
+    present = listed - len(missing)
     if best is None:
-        return (f"none of them is anywhere below {corpus_dir}: set splits.{split}.audio_dir to the folder that "
+        if present:
+            others = "the other is" if len(missing) == 1 else f"the {len(missing):,} others are"
+            return (f"a partial download: {others} in no folder below {shown_path(corpus_dir)} (looked for by name, "
+                    f"any audio extension)")
+        return (f"none of them is anywhere below {shown_path(corpus_dir)}: set splits.{split}.audio_dir to the folder that "
                 f"holds them, or corpus.audio_template to their names")
     rel = os.path.relpath(best, corpus_dir).replace(os.sep, "/")
-    return (f"{best_n} of the first {min(len(missing), HINT_SAMPLE)} are in {rel}: set splits.{split}.audio_dir = "
-            f"\"{rel}\"")
+    share = f"{len(best_found):,} of the {len(missing):,} missing"
+    if os.path.abspath(best) in searched:
+        return (f"{share} are in {rel} under other names (e.g. {example}): set corpus.audio_template to their "
+                f"names, or convert them to a format listed in docs/config.md")
+    return f"{share} are in {rel}: set splits.{split}.audio_dir = \"{rel}\""
 
 
-def read_split_clips(cfg: Config, split: str, corpus_dir: str, audio_dir: str | None = None) -> list[Clip]:
-    """Every clip of a split's manifest, unchecked (``audio_dir``: the split's audio
-    folder, :func:`split_audio_dir` when not given).
+def read_split_clips(cfg: Config, split: str, corpus_dir: str, audio_dirs: list[str] | None = None) -> list[Clip]:
+    """Every clip of a split's manifest, unchecked (``audio_dirs``: the folders its audio
+    is looked for in, :func:`split_audio_dirs` when not given).
 
     A manifest whose rows name their split (a plain manifest's ``split`` column) gives
     each split its own rows, so one file can serve several splits; a row without a split
@@ -242,9 +260,9 @@ def read_split_clips(cfg: Config, split: str, corpus_dir: str, audio_dir: str | 
     opts = {"split": None if shared else split}
     if cfg.corpus.audio_template:
         opts["template"] = cfg.corpus.audio_template
-    audio_dir = audio_dir or split_audio_dir(cfg, split, corpus_dir)
+    audio_dirs = audio_dirs or split_audio_dirs(cfg, split, corpus_dir)
     try:
-        clips = read_manifest(path, format=cfg.corpus.format, audio_dir=audio_dir, **opts)
+        clips = read_manifest(path, format=cfg.corpus.format, audio_dir=audio_dirs, **opts)
     except ManifestError as e:
         raise _format_hint(path, cfg.corpus.format) or e from None
     if shared:
@@ -301,7 +319,7 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
     seen: dict = {}
     for split in cfg.active_splits():
         try:
-            scan.audio_dirs[split] = split_audio_dir(cfg, split, corpus_dir)
+            scan.audio_dirs[split] = split_audio_dirs(cfg, split, corpus_dir)
             with bar(None, f"read {split}", "clip", progress) as b:  # 50k rows and their file names: a second or more
                 clips = read_split_clips(cfg, split, corpus_dir, scan.audio_dirs[split])
                 b.update(len(clips))
@@ -316,7 +334,6 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
         scan.problems += [ManifestError(m) for m in caption_problems(clips)]
         good, missing, n_bad, rates, left_out, kept = [], [], 0, Counter(), 0, 0
         floor = cfg.corpus.min_samplerate
-        preparing = cfg.corpus.check == "full" and cfg.corpus.prepare_on_check
         for clip, chk in zip(clips, check_clips(clips, cfg, workers, progress, desc=f"check {split}")):
             if chk.problem is None:
                 if chk.prepared:  # the clip is good; what render would refuse is its prepared form
@@ -327,7 +344,7 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
                     continue
                 if rate and rate < cfg.audio.fs:
                     rates[int(rate)] += 1
-                kept += preparing and wants_preparing(rate, chk.channels, cfg.audio.fs)
+                kept += chk.kept
                 good.append(clip)
                 continue
             bad = BadClip(split, clip.id, clip.origin, chk.problem)
@@ -343,14 +360,14 @@ def scan_catalog(cfg: Config, corpus_dir: str, workers: int = 1, progress: bool 
                               **({"prepared": kept} if kept else {})}
         scan.rates[split] = dict(sorted(rates.items()))
         scan.left_out[split] = left_out
-        if missing and 2 * len(missing) >= len(clips):  # most files absent: probably looked for in the wrong place
-            scan.hints[split] = missing_hint(split, missing, scan.audio_dirs[split], corpus_dir)
+        if missing:
+            scan.hints[split] = missing_hint(split, len(clips), missing, scan.audio_dirs[split], corpus_dir)
         if len(good) < MIN_CLIPS:
-            absent = f" ({len(missing)} of {len(clips)} audio files missing from {scan.audio_dirs[split]}" \
+            absent = f" ({len(missing):,} of {len(clips):,} audio files missing from {_folders(scan.audio_dirs[split])}" \
                      + (f"; {scan.hints[split]}" if split in scan.hints else "") + ")" if missing else ""
             if left_out:
-                absent += f" ({left_out} left out: recorded below corpus.min_samplerate = {floor} Hz)"
-            scan.problems.append(TselError(f"split {split}: only {len(good)} usable clips in "
+                absent += f" ({left_out:,} left out: recorded below corpus.min_samplerate = {floor} Hz)"
+            scan.problems.append(TselError(f"split {split}: only {len(good):,} usable clips in "
                                            f"{cfg.splits[split].manifest}{absent}; a scene needs {MIN_CLIPS}; add "
                                            f"clips or fix the bad ones"))
             continue
@@ -524,7 +541,7 @@ def _remembered(clip: Clip, verdict: ClipCheck, cfg: Config, level: str, prepare
     fs, duration = cfg.audio.fs, cfg.audio.duration
     wanted = prepare and wants_preparing(verdict.samplerate, verdict.channels, fs)
     if wanted:
-        return verdict if prepared_state(clip.audio, fs, duration, clip.offset) == "ok" else None
+        return replace(verdict, kept=True) if prepared_state(clip.audio, fs, duration, clip.offset) == "ok" else None
     problem = keep_prepared(clip.audio, fs, duration, clip.offset, prepare, wanted, deep=not prepare)
     return replace(verdict, prepared=problem) if problem else verdict
 
@@ -553,7 +570,8 @@ def write_missing_clips(path: str, scan: CatalogScan, root: str = "") -> None:
     audio files are absent, where they were looked for (relative to the corpus folder
     ``root``), and their clip ids (compact: ids only, the problem is the same for all)."""
     doc = {"splits": {split: {"listed": scan.counts[split]["clips"], "missing": len(clips),
-                              "audio_dir": _relative(scan.audio_dirs.get(split, ""), root),
+                              "audio_dir": _relative(scan.audio_dirs[split][0], root),
+                              "audio_dirs": [_relative(d, root) for d in scan.audio_dirs[split]],
                               "clip_ids": [c.id for c in clips]}
                       for split, clips in scan.missing.items() if clips}}
     write_json(path, doc)
@@ -564,6 +582,10 @@ def write_bad_clips(path: str, bad: list[BadClip], root: str = "") -> None:
     folder ``root`` (a dataset names no folder of the machine it was made on)."""
     write_lines(path, [json.dumps({**b.to_json(), "origin": _below(b.origin, root),
                                    "problem": _below(b.problem, root)}, ensure_ascii=False) for b in bad])
+
+
+def _folders(dirs: list[str]) -> str:
+    return " or ".join(dirs)
 
 
 def _relative(path: str, root: str) -> str:

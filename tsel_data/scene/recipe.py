@@ -431,12 +431,17 @@ def read_plan(path) -> list[SceneRecipe]:
 
 def corpus_files(d: dict) -> list[tuple[str, str, list]]:
     """(file relative to the corpus, its id, its captions) of what a plan line (as plain
-    data) reads from the corpus, in source order: a rendered scene's clips, or a recorded
-    scene's recording and its label file (a recipe release lists and checks these)."""
+    data) reads from the corpus, in source order: a rendered scene's clips (its sources',
+    then the clips its noise plays: babble talkers, a diffuse bed's spectrum, named by
+    their file and without captions), or a recorded scene's recording and its label file
+    (a recipe release lists and checks these)."""
     if d.get("kind") == RECORDED:
         stem = os.path.splitext(os.path.basename(d["audio"]))[0]
         return [(d["audio"], stem, []), (d["metadata"], f"{stem} labels", [])]
-    return [(s["audio"], s["clip_id"], s["captions"]) for s in d["sources"]]
+    sources = [(s["audio"], s["clip_id"], s["captions"]) for s in d["sources"]]
+    mine = {name for name, _, _ in sources}
+    noise = [c[0] for n in d.get("noise", ()) for c in n.get("clips", ()) if c[0] not in mine]
+    return sources + [(name, os.path.splitext(os.path.basename(name))[0], []) for name in dict.fromkeys(noise)]
 
 
 def recipe_from_dict(d: dict):

@@ -11,7 +11,9 @@ Sound Event Localization"):
 Rows are given for the whole split and per scenario, motion, query type, query type
 and relation (``relational:loudest``), and pairing (docs/queries.md).
 
-A group's MAE and accuracies (share of units with e ≤ 5°, 10°, 20°) pool its units.
+A group's MAE and accuracies (share of units with e ≤ 5°, 10°, 20°, to within
+:data:`ACC_TOLERANCE`, so that a prediction exactly 5° off counts at 5° despite rounding)
+pool its units.
 For a purely static or purely moving split this is exactly the paper's number; in a
 mixed group each moving scene contributes one unit per active frame, so the per-scene
 MAE (the mean of each scene's mean error) is given beside it. The DCASE SELD metrics of
@@ -44,6 +46,7 @@ from .blind import CLOSE_DEG, blind_predictions
 from .labels import decode_distribution
 
 THRESHOLDS = (5.0, 10.0, 20.0)
+ACC_TOLERANCE = 1e-6  # degrees: an error of exactly T can compute as T + 3e-14 (circular means); it counts for acc@T
 MAX_AZIMUTH = 360.0 * 1000  # degrees: any real prediction is far inside; larger ones are unit mistakes
 __all__ = ["PredictionError", "Prediction", "EvalResult", "evaluate", "read_predictions", "parse_prediction",
            "scene_errors", "summarise", "write_predictions"]
@@ -227,7 +230,7 @@ def summarise(errors: list[np.ndarray]) -> dict:
     row = {"scenes": len(errors), "units": int(e.size), "mae": float(e.mean()) if e.size else float("nan"),
            "scene_mae": float(np.mean(means)) if means else float("nan")}
     for t in THRESHOLDS:
-        row[f"acc{int(t)}"] = float((e <= t).mean()) if e.size else float("nan")
+        row[f"acc{int(t)}"] = float((e <= t + ACC_TOLERANCE).mean()) if e.size else float("nan")
     return row
 
 
@@ -241,11 +244,11 @@ def evaluate(root: str, split: str, predictions) -> EvalResult:
     known = set(ids)
     unknown = [s for s in preds if s not in known]
     if unknown:
-        raise PredictionError(f"{len(unknown)} predicted scene id(s) are not in split {split!r}, e.g. "
+        raise PredictionError(f"{len(unknown):,} predicted scene id(s) are not in split {split!r}, e.g. "
                               f"{unknown[0]!r}; predict the scenes of `--split {split}`")
     missing = [s for s in ids if s not in preds]
     if missing:
-        raise PredictionError(f"{len(missing)} of {len(ids)} scenes of split {split!r} have no prediction, e.g. "
+        raise PredictionError(f"{len(missing):,} of {len(ids):,} scenes of split {split!r} have no prediction, e.g. "
                               f"{missing[0]!r}; the file must predict every scene")
     per_scene, groups_sc, groups_mo, all_err = [], {}, {}, []
     groups_q, groups_rel, groups_pair, groups_snr = {}, {}, {}, {}

@@ -56,12 +56,12 @@ def evaluate_dcase(root: str, split: str, pred_dir: str) -> SeldScores:
         ids = set(ds.scene_ids())
         unknown = sorted(set(preds) - ids)
         if unknown:
-            raise PredictionError(f"{pred_dir}: {len(unknown)} file(s) name no scene of split {split!r}, e.g. "
+            raise PredictionError(f"{pred_dir}: {len(unknown):,} file(s) name no scene of split {split!r}, e.g. "
                                   f"{unknown[0]!r}; predict the scenes of `--split {split}`")
         missing = sorted(ids - set(preds))
         if missing:
-            raise PredictionError(f"{pred_dir}: {len(missing)} of {len(ids)} scenes of split {split!r} have no "
-                                  f"prediction file, e.g. {missing[0]!r}.csv; write one per scene (empty: nothing "
+            raise PredictionError(f"{pred_dir}: {len(missing):,} of {len(ids):,} scenes of split {split!r} have no "
+                                  f"prediction file, e.g. {missing[0] + '.csv'!r}; write one per scene (empty: nothing "
                                   f"detected)")
         if abs(ds.label_hop - FRAME_HOP) > 1e-9:
             raise DatasetError(f"{root}: label_hop is {ds.label_hop} s; the DCASE metrics need {FRAME_HOP} s frames")

@@ -253,6 +253,9 @@ def reverb_ratio(scene, s: int, frames: np.ndarray) -> float | None:
 LOW_SHARE = 0.5      # more of the source's energy below fmin than in the band
 TONAL_BAND = 0.05    # 90 % of the in-band energy in fewer than 5 % of the band's bins
 REVERB_RATIO = 4.0   # further than 4 critical distances: reverberant sound 12 dB above the direct
+CRITICAL_DISTANCE = ("critical distance: how far from a source its direct sound is as loud as the room's reverberant "
+                     "sound, 0.057·sqrt(V / RT60) m for the room's volume V in m³ and RT60 in s; at N of them the "
+                     "reverberant sound is 20·log10(N) dB above the direct")
 REASONS = {
     "never-alone": "it never plays alone: another source sounds whenever it does, and a classical localizer then "
                    "hears the louder one",
@@ -306,7 +309,7 @@ def verify_scene(scene, tolerance: float = 20.0, min_frames: int = 3, window: in
         if not len(dom):
             reason = "never-alone"
         elif len(dom) < min_frames:
-            reason, detail = "few-frames", f"{len(dom)} of {min_frames} needed"
+            reason, detail = "few-frames", f"{len(dom):,} of {min_frames:,} needed"
         else:
             low, band_share = spectrum_traits(spec[0], owner, dom, freqs, fmin, fmax)
             if low > LOW_SHARE:
@@ -400,28 +403,32 @@ class VerifyReport:
                     lines.append(f"{counts[reason]:>6}  {REASONS[reason]}")
         untested = sum(len(v["untested"]) for v in self.splits.values())
         if untested:
-            lines.append(f"{untested} scene(s) hold no source it can judge")
+            lines.append(f"{untested:,} scene(s) hold no source it can judge")
         checked = sum(v["loudest_checked"] for v in self.splits.values())
         if checked:
             agree = sum(v["loudest_agree"] for v in self.splits.values())
-            lines.append(f"  in {checked} of them the loudest direction was checked instead: it is one of the "
-                         f"labelled ones in {agree} ({100 * agree / checked:.0f} %)")
+            lines.append(f"  in {checked:,} of them the loudest direction was checked instead: it is one of the "
+                         f"labelled ones in {agree:,} ({100 * agree / checked:.0f} %)")
         bad = [(n, d) for n, v in self.splits.items() for d in v["disagree"]]
+        critical = bool(counts.get("reverberant"))  # a line in critical distances: say what one is
         if bad:
-            lines.append(f"{len(bad)} scene(s) disagree:")
+            lines.append(f"{len(bad):,} scene(s) disagree:")
             for name, d in bad[:max_list]:
                 worst = max(d["sources"], key=lambda r: r["error"])
                 n = worst.get("windows", 1)
                 where = f"in the median of {n} windows, " if n > 1 else ""
                 room = (f", {worst['reverb_ratio']:.1f} critical distances away"
                         if worst.get("reverb_ratio") is not None else "")
+                critical = critical or bool(room)
                 lines.append(f"  {d['scene_id']}: source {worst['source']} ({worst['role']}) {where}labelled "
                              f"{worst['label']:.1f} deg, audio says {worst['estimate']:.1f} deg "
                              f"(error {worst['error']:.1f}{room})")
             if len(bad) > max_list:
-                lines.append(f"  ... and {len(bad) - max_list} more (use --json for all)")
+                lines.append(f"  ... and {len(bad) - max_list:,} more (use --json for all)")
         else:
             lines.append("no judged scene disagrees")
+        if critical:
+            lines.append(CRITICAL_DISTANCE)
         if self.recorded:
             lines.append("recorded scenes: a classical localizer and human annotation of real rooms are not "
                          "expected to agree everywhere; this reports how often they do, it does not judge the "

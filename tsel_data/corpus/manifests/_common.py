@@ -305,19 +305,29 @@ class FileIndex:
         return name in self.listing(folder)
 
 
-def first_file(base: str, rels, index: FileIndex) -> str:
-    """The first of the relative names ``rels`` (an iterable, formatted lazily) that
-    exists under ``base``, resolved; the first one when none does (the clip check then
-    reports it missing)."""
-    first = None
-    for rel in rels:
-        if first is None:
-            first = rel
-            if "/" not in rel and not index.holds_audio(base):
-                break  # no audio file here at all (nothing downloaded yet): no candidate can exist
-        if index.exists(base, rel):
-            return resolve(base, rel)
-    return resolve(base, first)
+class AudioSearch:
+    """Where a manifest's audio files are: each clip's candidate names (relative, or
+    absolute) tried in each folder ``audio_dir`` gives (one folder, or several in order:
+    a split's own folder first, then the one all splits share), the first that exists
+    being the clip's audio; when none does, the first name in the first folder (the clip
+    check then reports it missing). ``audio_dir`` None: the manifest's folder."""
+
+    def __init__(self, name: str, audio_dir=None):
+        dirs = [audio_dir] if audio_dir is None or isinstance(audio_dir, (str, os.PathLike)) else list(audio_dir)
+        self.bases = tuple(dict.fromkeys(base_dir(name, d) for d in dirs or [None]))
+        self.index = FileIndex()
+
+    def find(self, rels: Sequence[str]) -> str:
+        """The audio file of a clip whose file may be called any of ``rels``."""
+        if len(rels) == 1 and len(self.bases) == 1:  # one name, one folder: no need to look at the disk
+            return resolve(self.bases[0], rels[0])
+        for base in self.bases:
+            for rel in rels:
+                if "/" not in rel and not self.index.holds_audio(base):
+                    break  # no audio file here at all (nothing downloaded yet): no candidate can exist
+                if self.index.exists(base, rel):
+                    return resolve(base, rel)
+        return resolve(self.bases[0], rels[0])
 
 
 def strip_audio_ext(s: str) -> str:

@@ -11,8 +11,8 @@ from __future__ import annotations
 import re
 
 from ..clip import Clip
-from ._common import (CsvTable, FileIndex, base_dir, check_template, empty_error, fail, first_file, gc_paused,
-                      manifest_name, pick_split, read_text, resolve, template_list)
+from ._common import (AudioSearch, CsvTable, check_template, empty_error, fail, gc_paused, manifest_name, pick_split,
+                      read_text, template_list)
 
 COLUMNS = ("audiocap_id", "youtube_id", "start_time", "caption")
 TEMPLATE_FIELDS = ("youtube_id", "audiocap_id", "start_time")
@@ -29,7 +29,8 @@ def read_audiocaps(path, audio_dir=None, template=None, split: str | None = None
     """Read an AudioCaps caption CSV into clips, one per ``(youtube_id, start_time)``.
 
     path:      the CSV (``train.csv``, ``val.csv``, ``test.csv`` or any name).
-    audio_dir: folder of the downloaded audio; default the manifest's folder.
+    audio_dir: folder of the downloaded audio, or several tried in order; default the
+               manifest's folder.
     template:  audio file name inside ``audio_dir``, a ``str.format`` pattern with fields
                ``{youtube_id}``, ``{audiocap_id}`` (the clip's first row) and
                ``{start_time}`` (as written), e.g. ``Y{youtube_id}.wav`` or
@@ -82,16 +83,11 @@ def read_audiocaps(path, audio_dir=None, template=None, split: str | None = None
     if not groups:
         raise empty_error(name, "no caption rows after the header")
 
-    base = base_dir(name, audio_dir)
+    search = AudioSearch(name, audio_dir)
     split = pick_split(split, name)
     clips = []
-    files = FileIndex()
     for line, yt, st, start, aids, caps in groups.values():
-        if len(templates) == 1:  # one name: no need to look at the disk
-            audio = resolve(base, templates[0].format(youtube_id=yt, audiocap_id=aids[0], start_time=st))
-        else:
-            audio = first_file(base, (t.format(youtube_id=yt, audiocap_id=aids[0], start_time=st)
-                                      for t in templates), files)
+        audio = search.find([t.format(youtube_id=yt, audiocap_id=aids[0], start_time=st) for t in templates])
         clips.append(Clip(
             id=f"{yt}_{st}",
             audio=audio,

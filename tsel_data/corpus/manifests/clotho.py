@@ -9,7 +9,7 @@ from __future__ import annotations
 import re
 
 from ..clip import Clip
-from ._common import CsvTable, base_dir, empty_error, fail, gc_paused, manifest_name, pick_split, read_text, resolve
+from ._common import AudioSearch, CsvTable, empty_error, fail, gc_paused, manifest_name, pick_split, read_text
 
 _CAPTION_COL = re.compile(r"caption_(\d+)$")
 
@@ -20,7 +20,8 @@ def read_clotho(path, audio_dir=None, split: str | None = None) -> list[Clip]:
 
     path:      the CSV; columns ``file_name`` and ``caption_1`` .. ``caption_N`` (Clotho
                has N = 5; any N >= 1 is read, in column-number order).
-    audio_dir: folder of the split's audio files; default the manifest's folder.
+    audio_dir: folder of the split's audio files, or several tried in order; default the
+               manifest's folder.
     split:     split of every clip; default from the file name (``development`` ->
                ``train``, ``validation`` -> ``val``, ``evaluation`` -> ``test``).
 
@@ -37,7 +38,7 @@ def read_clotho(path, audio_dir=None, split: str | None = None) -> list[Clip]:
     cap_idx = [i for _, i in cap_cols]
     i_file = table.index["file_name"]
 
-    base = base_dir(name, audio_dir)
+    search = AudioSearch(name, audio_dir)
     split = pick_split(split, name)
     first_line: dict[str, int] = {}
     clips = []
@@ -56,7 +57,7 @@ def read_clotho(path, audio_dir=None, split: str | None = None) -> list[Clip]:
             if not caption:
                 raise fail(f"{name}:{line}", f"empty caption in column {table.header[i]}",
                            "write the caption or delete the row")
-        clips.append(Clip(id=fname, audio=resolve(base, fname), captions=caps, offset=0.0,
+        clips.append(Clip(id=fname, audio=search.find((fname,)), captions=caps, offset=0.0,
                           split=split, origin=f"{name}:{line}"))
     if not clips:
         raise empty_error(name, "no clip rows after the header")

@@ -10,8 +10,8 @@ import json
 import os
 
 from ..clip import Clip
-from ._common import (CsvTable, DuplicateKey, base_dir, duplicate_key, empty_error, fail, gc_paused, manifest_name,
-                      read_text, resolve, unique_keys)
+from ._common import (AudioSearch, CsvTable, DuplicateKey, duplicate_key, empty_error, fail, gc_paused,
+                      manifest_name, read_text, unique_keys)
 
 JSONL_EXTENSIONS = (".jsonl", ".ndjson")
 
@@ -118,7 +118,7 @@ def read_plain(path, audio_dir=None, split: str | None = None) -> list[Clip]:
     if not groups:
         raise empty_error(name, "no rows")
 
-    base = base_dir(name, audio_dir)
-    return [Clip(id=cid, audio=resolve(base, p), captions=tuple(caps), offset=0.0,
+    search = AudioSearch(name, audio_dir)
+    return [Clip(id=cid, audio=search.find((p,)), captions=tuple(caps), offset=0.0,
                  split=sp, origin=f"{name}:{line}")
             for cid, (line, p, sp, caps) in groups.items()]

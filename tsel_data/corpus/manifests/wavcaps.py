@@ -22,9 +22,8 @@ import math
 import os
 
 from ..clip import Clip
-from ._common import (DuplicateKey, FileIndex, base_dir, check_template, duplicate_key, empty_error, fail,
-                      first_file, gc_paused, manifest_name, read_text, resolve, strip_audio_ext, template_list,
-                      unique_keys)
+from ._common import (AudioSearch, DuplicateKey, check_template, duplicate_key, empty_error, fail, gc_paused,
+                      manifest_name, read_text, strip_audio_ext, template_list, unique_keys)
 
 TEMPLATE_FIELDS = ("id", "raw_id")
 _PLACEHOLDERS = {"wav_path", "flac_path", "audio_path", "path", "none", "null"}
@@ -104,10 +103,9 @@ def read_wavcaps(path, audio_dir=None, template="{id}.flac",
     if not entries:
         raise empty_error(name, "no entries in \"data\"")
 
-    base = base_dir(name, audio_dir)
+    search = AudioSearch(name, audio_dir)
     first: dict[str, int] = {}
     clips = []
-    files = FileIndex()
     for n, entry in enumerate(entries, start=1):
         where = f"{name}:{n}"
         if not isinstance(entry, dict):
@@ -126,10 +124,7 @@ def read_wavcaps(path, audio_dir=None, template="{id}.flac",
         first[cid] = n
         caps = _captions(entry, where)
         rel = _audio_value(entry.get("audio"))
-        if rel is None and len(templates) > 1:
-            audio = first_file(base, (t.format(id=cid, raw_id=raw_id) for t in templates), files)
-        else:
-            audio = resolve(base, rel if rel is not None else templates[0].format(id=cid, raw_id=raw_id))
+        audio = search.find((rel,) if rel is not None else [t.format(id=cid, raw_id=raw_id) for t in templates])
         meta = {"raw_id": raw_id}
         dur = entry.get("duration")
         if isinstance(dur, (int, float)) and not isinstance(dur, bool) and math.isfinite(dur):
