@@ -25,6 +25,7 @@ from ..config.receiver import array_poses, hrtf_problem
 from ..core.report import CheckReport
 from ..errors import DatasetError, TselError
 from ..plan.catalog import BUILTIN_DEMO, resolve_corpus_dir, reuse_stop, scan_catalog
+from ..plan.drawn import plan_drawn
 from ..plan.recorded import plan_recorded, recorded_corpus
 from ..plan.sampler import CatalogView, ambience_problems, bank_request, extended_queries, plan_split_json
 from ..store.layout import Layout
@@ -173,10 +174,7 @@ def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: Chec
     scan = scan_catalog(looking, corpus_dir, workers, progress=None)  # bars only on a terminal
     for e in scan.problems:
         rep.error(e)
-    for b in scan.bad:
-        rep.bad_clips.append(b.to_json())
-        if cfg.on_bad_clip == "skip":
-            rep.warnings.append(f"{b.origin}: clip {b.clip_id}: {b.problem} (skipped: on_bad_clip = \"skip\")")
+    _report_bad(cfg, scan.bad, rep)
     for split, clips in scan.missing.items():
         if clips and cfg.on_bad_clip == "skip":
             # a partial download is normal: one line per split, not one per absent file
@@ -197,6 +195,17 @@ def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: Chec
     return scan.clips
 
 
+def _report_bad(cfg: Config, bad: list, rep: CheckReport, errors: bool = False) -> None:
+    """Bad clips in the report: listed, and a warning each under ``on_bad_clip = "skip"``
+    (under ``"fail"`` they are errors: the scan's problems, or here with ``errors``)."""
+    for b in bad:
+        rep.bad_clips.append(b.to_json())
+        if cfg.on_bad_clip == "fail" and errors:
+            rep.error(b.error())
+        elif cfg.on_bad_clip == "skip":
+            rep.warnings.append(f"{b.origin}: clip {b.clip_id}: {b.problem} (skipped: on_bad_clip = \"skip\")")
+
+
 def _check_plan(cfg: Config, catalogs: dict, workers: int, rep: CheckReport, out_dir, scratch: Layout) -> None:
     """Sample every scene in memory (what `tsel plan` would write), collecting failures."""
     bank_path = None
@@ -212,7 +221,14 @@ def _check_plan(cfg: Config, catalogs: dict, workers: int, rep: CheckReport, out
             view = CatalogView(clips, bank_path)
             if extended_queries(cfg):  # built once here, not in every planning process
                 view.caption_index(cfg.scene.similarity, cfg.corpus.caption_embeddings)
-            lines = plan_split_json(cfg, split, view, workers, progress=None)  # a bar only on a terminal
+            if cfg.corpus.check == "drawn":  # the clips the plan draws, checked as the job checks them
+                plans, found = plan_drawn(cfg, {split: view}, workers, progress=None, prepare=False)
+                lines = plans[split]
+                _report_bad(cfg, found.bad, rep, errors=True)
+                rep.facts["splits"][split]["bad"] = rep.facts["splits"][split].get("bad", 0) + len(found.bad)
+                rep.facts["splits"][split]["checked_in_full"] = found.checked
+            else:
+                lines = plan_split_json(cfg, split, view, workers, progress=None)  # a bar only on a terminal
         except TselError as e:
             rep.error(e)
             continue
