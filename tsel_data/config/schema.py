@@ -215,7 +215,7 @@ class SceneConfig:
     margin_solo: float = option(1.0, "heard at T: the target is the only active source on every label frame "
                                      "within this window centred on T", unit="s", gt=0.0, new=True)
     motion: str = option("static", "`static`, `moving` or `mixed`. In simulated rooms a moving source follows "
-                                   "`path`, with an RIR at least every 100 ms, every 4° and every 6 cm; "
+                                   "`path`, with an RIR at least every 100 ms, every 4° and every 6 cm (4.5 cm on arcs); "
                                    "with a bank it walks a bank trajectory, starting at a random point in a random "
                                    "direction",
                          choices=Motion)
