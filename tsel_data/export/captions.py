@@ -25,7 +25,7 @@ from collections import Counter
 from ..scene.questions import draw
 from ..scene.vocabularies import VOCABULARIES, vocabulary
 from .base import SplitResult, Writer, WriterOption
-from .spatial import language_section, room_facts, source_facts, vocabulary_doc, where_of
+from .spatial import language_section, levels_known, room_facts, source_facts, vocabulary_doc, where_of
 
 CAPTIONS_FILE, SCENES_FILE, VOCABULARY_FILE = "captions.jsonl", "scenes.jsonl", "vocabulary.json"
 
@@ -52,6 +52,7 @@ class CaptionsWriter(Writer):
         seed = int(job.doc.raw.get("seed", 0))
         rows, scenes, why = [], [], Counter()
         counts = Counter()
+        levels = levels_known(job)
         with job.open(split) as ds:
             b = job.bar(len(ds), f"captions {split}")
             for scene in job.scenes(ds, audio=False):
@@ -61,7 +62,7 @@ class CaptionsWriter(Writer):
                 counts["no_room"] += v.rooms and room_bin is None
                 listed = []
                 for k, src in enumerate(rec.sources):
-                    facts = source_facts(scene, k)
+                    facts = source_facts(scene, k, levels)
                     bins = v.bins(facts, room)
                     spatial = v.describe(facts, room)
                     clip = src.captions[int(draw(seed, scene.scene_id, "caption", k).integers(len(src.captions)))] \

@@ -28,7 +28,7 @@ from ..scene.questions import QUESTIONS, ask, draw
 from ..scene.vocabularies import VOCABULARIES, vocabulary
 from .base import SplitResult, Writer, WriterOption
 from .captions import jsonl
-from .spatial import caption_pool, language_section, scene_facts, vocabulary_doc, where_of
+from .spatial import caption_pool, language_section, levels_known, scene_facts, vocabulary_doc, where_of
 
 QA_FILE, SCHEMA_FILE = "qa.jsonl", "schema.json"
 LETTERS = "ABCD"
@@ -152,12 +152,12 @@ class QaWriter(Writer):
         schema = SCHEMAS[self.opts["schema"]]
         seed = int(job.doc.raw.get("seed", 0))
         margins = self.margins(job)
-        candidates, n_scenes = [], 0
+        candidates, n_scenes, levels = [], 0, levels_known(job)
         with job.open(split) as ds:
             pool = caption_pool(ds)
             b = job.bar(len(ds), f"qa {split}")
             for scene in job.scenes(ds, audio=False):
-                facts = scene_facts(scene, margins, seed, ds.caption_similarity, pool)
+                facts = scene_facts(scene, margins, seed, ds.caption_similarity, pool, levels)
                 candidates += [(facts, q) for q in ask(facts, self.vocab, self.opts["types"])]
                 n_scenes += 1
                 b.update()

@@ -4,7 +4,8 @@ decided on, and the captions that name each source alone (docs/spatial-language.
 
 Everything comes from the scene's labels and record, as the reader gives them (the
 labels are the array frame's, the same for every receiver of a dataset heard by several):
-positions on the active frames, the level measured in the mix (``level_dbfs``), C50 from
+positions on the active frames, the level measured in the mix (``level_dbfs``, on the
+audio of ``scene.format``: unknown for a further receiver's export), C50 from
 the source's acoustic descriptors when the record has them, the motion class from the
 record, or decided on the labels (:func:`~tsel_data.scene.motion.motion_class`; a
 recording without distances: on its directions alone), and the room's floor area,
@@ -20,6 +21,7 @@ import numpy as np
 from ..core.geometry import circular_mean
 from ..corpus.captions import answerable_queries
 from ..scene.motion import motion_class
+from ..store.dataset import load_dataset_doc
 from ..scene.queries import Truth, held
 from ..scene.questions import SceneFacts, draw
 from ..scene.vocabularies import CONVENTION, MOTION_WORDS, RoomFacts, SourceFacts
@@ -52,9 +54,9 @@ def _motion(source, az, el, d, active) -> str | None:
     return motion_class(az, el, d, active)
 
 
-def source_facts(scene, k: int) -> SourceFacts:
+def source_facts(scene, k: int, levels: bool = True) -> SourceFacts:
     """Source ``k`` of a read :class:`~tsel_data.store.scene.Scene`: its labels on its
-    active frames, motion, time span, level and C50."""
+    active frames, motion, time span, level (``levels=False``: unknown) and C50."""
     rec = scene.record.sources[k]
     act = np.asarray(scene.active[k], dtype=bool)
     az, el, d = (np.asarray(a[k], dtype=np.float64) for a in (scene.azimuth, scene.elevation, scene.distance))
@@ -62,14 +64,16 @@ def source_facts(scene, k: int) -> SourceFacts:
     span = None if not len(frames) else (float(frames[0] * scene.label_hop), float((frames[-1] + 1) * scene.label_hop))
     acoustics = getattr(rec, "acoustics", None) or {}
     c50 = acoustics.get("c50_db")
-    return SourceFacts(az[act], el[act], d[act], _motion(rec, az, el, d, act), span, rec.level_dbfs,
-                       None if c50 is None else float(c50))
+    return SourceFacts(az[act], el[act], d[act], _motion(rec, az, el, d, act), span,
+                       rec.level_dbfs if levels else None, None if c50 is None else float(c50))
 
 
-def scene_truth(scene) -> Truth:
+def scene_truth(scene, levels: bool = True) -> Truth:
     """The scene's truth as relational queries decide it: levels as measured (NaN where
-    unknown), activity, and positions held over the frames a recording leaves unlabelled."""
-    level = np.array([np.nan if s.level_dbfs is None else float(s.level_dbfs) for s in scene.record.sources])
+    unknown, or all with ``levels=False``), activity, and positions held over the frames a
+    recording leaves unlabelled."""
+    level = np.array([np.nan if s.level_dbfs is None or not levels else float(s.level_dbfs)
+                      for s in scene.record.sources])
     rows = [np.array([held(np.asarray(r, dtype=np.float64)) for r in a])
             for a in (scene.azimuth, scene.elevation, scene.distance)]
     return Truth(level, np.asarray(scene.active, dtype=bool), *rows, scene.label_hop)
@@ -109,12 +113,19 @@ def absent(scene, pool: list, similarity: float, seed: int) -> tuple:
     return tuple(out)
 
 
-def scene_facts(scene, margins: dict, seed: int, similarity: float, pool: list) -> SceneFacts:
+def scene_facts(scene, margins: dict, seed: int, similarity: float, pool: list,
+                levels: bool = True) -> SceneFacts:
     """Everything a scene's questions are decided on."""
-    return SceneFacts(scene.scene_id, scene_truth(scene), tuple(source_facts(scene, k) for k in
-                                                                range(scene.n_sources)),
+    return SceneFacts(scene.scene_id, scene_truth(scene, levels),
+                      tuple(source_facts(scene, k, levels) for k in range(scene.n_sources)),
                       names(scene, similarity, seed), distinct(scene, similarity),
                       absent(scene, pool, similarity, seed), margins, seed)
+
+
+def levels_known(job) -> bool:
+    """Whether the records' levels are the exported receiver's: they are measured on the
+    audio of ``scene.format``, not on a further receiver's (``--receiver``)."""
+    return job.receiver in (None, load_dataset_doc(job.root).format)
 
 
 def caption_pool(ds) -> list:

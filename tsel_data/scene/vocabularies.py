@@ -29,7 +29,8 @@ MOTION_WORDS = {"approaching": "approaching", "receding": "moving away", "passin
                 "circling": "moving around the listener"}
 CONVENTION = {"frame": "the array frame: right-handed, origin at the array centre, x front, y left, z up",
               "azimuth": "degrees, counter-clockwise from the front seen from above, +90 = left, [-180, 180)",
-              "elevation": "degrees above the horizontal plane (up positive)", "distance": "metres from the array centre"}
+              "elevation": "degrees above the horizontal plane (up positive)",
+              "distance": "metres from the array centre"}
 BIN_KEYS = ("direction", "elevation", "distance", "room", "motion")
 
 
@@ -343,8 +344,8 @@ def _num(text: str):
 
 class Sectors8(Vocabulary):
     name = "sectors8"
-    summary = ("Sci-Phi's scene lines: upper / horizontal / lower × 8 sectors of 45°, metres to 0.1, loudness and C50 "
-               "in dB, time spans; room volume and RT60")
+    summary = ("Sci-Phi's scene lines: upper / horizontal / lower × 8 sectors of 45°, metres to 0.1, loudness and "
+               "C50 in dB, time spans; room volume and RT60")
     origin = "Jiang, Gamper, Braun, Sci-Phi: A Large Language Model Spatial Audio Descriptor (2025)"
     rooms = True
     direction = (Axis("azimuth", _sector, lambda b: (45.0 * SECTORS.index(b), 22.5), SECTORS, tuple(
