@@ -128,6 +128,19 @@ def rows_of(out, split, name):
     return [json.loads(line) for line in open(path, encoding="utf-8")] if os.path.exists(path) else []
 
 
+def rows_with_scenes(out, generated_dataset, dataset):
+    """(row, scene, sources) of every row of a qa export, with its scene read from the
+    dataset; every row's scene is there."""
+    for split in splits(generated_dataset, dataset):
+        by_scene = defaultdict(list)
+        for row in rows_of(out, split, "qa.jsonl"):
+            by_scene[row["scene_id"]].append(row)
+        for scene, srcs in scenes_of(generated_dataset(dataset).out, split):
+            for row in by_scene.pop(scene.scene_id, []):
+                yield row, scene, srcs
+        assert not by_scene
+
+
 @pytest.fixture(scope="module")
 def made(generated_dataset, tmp_path_factory):
     """made(KIND, DATASET, **options): the export's folder, made once per module."""
@@ -342,19 +355,13 @@ def derive(row, v, scene, srcs):
 @pytest.mark.parametrize("dataset", DATASETS)
 @pytest.mark.parametrize("name", VOCABS)
 def test_every_answer_is_decided_again_on_the_labels(made, generated_dataset, dataset, name):
-    out = made("qa", dataset, schema="so-qa", vocabulary=name, balance=False)
     v = vocabulary(name)
     asked = Counter()
-    for split in splits(generated_dataset, dataset):
-        by_scene = defaultdict(list)
-        for row in rows_of(out, split, "qa.jsonl"):
-            by_scene[row["scene_id"]].append(row)
-        for scene, srcs in scenes_of(generated_dataset(dataset).out, split):
-            for row in by_scene.pop(scene.scene_id, []):
-                assert derive(row, v, scene, srcs) == row["answer"], row
-                assert row["evidence"]["value"] >= row["evidence"]["margin"]
-                asked[row["task_type"]] += 1
-        assert not by_scene
+    for row, scene, srcs in rows_with_scenes(made("qa", dataset, schema="so-qa", vocabulary=name, balance=False),
+                                             generated_dataset, dataset):
+        assert derive(row, v, scene, srcs) == row["answer"], row
+        assert row["evidence"]["value"] >= row["evidence"]["margin"]
+        asked[row["task_type"]] += 1
     assert asked["where"] + asked["what_at"] and asked["count"], asked
     if dataset == "recorded":
         assert not asked["louder"]  # a recording's levels are unknown
@@ -418,17 +425,12 @@ def _wrong_on_the_labels(row, v, srcs):
 @pytest.mark.parametrize("dataset", ["language", "recorded"])
 @pytest.mark.parametrize("name", ["elsa", "bat", "sectors8"])
 def test_every_distractor_is_wrong(made, generated_dataset, dataset, name):
-    out = made("qa", dataset, schema="mcq", vocabulary=name, balance=False)
     v = vocabulary(name)
     n = 0
-    for split in splits(generated_dataset, dataset):
-        rows = defaultdict(list)
-        for row in rows_of(out, split, "qa.jsonl"):
-            rows[row["scene_id"]].append(row)
-        for scene, srcs in scenes_of(generated_dataset(dataset).out, split):
-            for row in rows.pop(scene.scene_id, []):
-                _wrong_on_the_labels(row, v, srcs)
-                n += 1
+    for row, _, srcs in rows_with_scenes(made("qa", dataset, schema="mcq", vocabulary=name, balance=False),
+                                         generated_dataset, dataset):
+        _wrong_on_the_labels(row, v, srcs)
+        n += 1
     assert n > 10
 
 
@@ -438,6 +440,9 @@ def balance_class(row):
         return "first" if row["source_refs"][0]["source"] == c["source"] else "second"
     if t == "distance":
         return f"{int(c)} m" if not isinstance(c, str) else c
+    if t == "moving":  # balanced on the truth; yes or no is drawn with the question's form
+        still_asked = "still" in row["question"] or "one place" in row["question"]
+        return "still" if c == still_asked else "moving"
     return None if t in ("what_at", "layout") else str(c)
 
 

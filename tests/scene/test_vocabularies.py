@@ -146,3 +146,15 @@ def test_every_vocabulary_reads_its_own_words_back(name):
 def test_an_unknown_vocabulary_names_those_there_are():
     with pytest.raises(ValueError, match="no vocabulary 'owl'; choose one of elsa, sectors8, oclock, bat"):
         vocabulary("owl")
+
+
+def test_the_docs_tables_are_the_registries():
+    """docs/spatial-language.md's tables are generated (python -m tsel_data.scene.language_doc
+    docs/spatial-language.md)."""
+    from support import REPO
+    from tsel_data.scene.language_doc import render
+
+    text = (REPO / "docs" / "spatial-language.md").read_text(encoding="utf-8")
+    assert render(text) == text, "docs/spatial-language.md is stale: run python -m tsel_data.scene.language_doc"
+    for v in VOCABULARIES.values():
+        assert f"| `{v.name}` | direction |" in text

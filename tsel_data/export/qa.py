@@ -47,15 +47,14 @@ def _so_qa(q, facts, n: int) -> dict:
 
 
 def options(q, seed: int, scene_id: str) -> tuple | None:
-    """(four options, the answer's letter) of a question: three of its wrong answers and
-    the answer, placed by a draw; None when it has fewer than three wrong answers."""
-    wrong = list(dict.fromkeys(w for w in q.wrong if w != q.answer))
+    """(four options, the answer's letter) of a question: its first three wrong answers
+    (the most telling: the other sound compared, the neighbouring bins) and the answer, in
+    an order drawn; None when it has fewer than three wrong answers."""
+    wrong = list(dict.fromkeys(w for w in q.wrong if w != q.answer))[:3]
     if len(wrong) < 3:
         return None
-    rng = draw(seed, scene_id, q.key, "options")
-    picked = [wrong[int(i)] for i in sorted(rng.permutation(len(wrong))[:3])]
-    at = int(rng.integers(4))
-    return picked[:at] + [q.answer] + picked[at:], LETTERS[at]
+    order = [[q.answer, *wrong][int(i)] for i in draw(seed, scene_id, q.key, "options").permutation(4)]
+    return order, LETTERS[order.index(q.answer)]
 
 
 def _mcq(q, facts, n: int) -> dict | None:

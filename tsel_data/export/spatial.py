@@ -99,14 +99,15 @@ def distinct(scene, similarity: float) -> tuple:
 
 def absent(scene, pool: list, similarity: float, seed: int) -> tuple:
     """Up to :data:`ABSENT` captions of ``pool`` (the split's) that describe none of the
-    scene's sources: sounds that are not there."""
+    scene's sources, nor each other: sounds that are not there."""
     caps = [list(s.captions) for s in scene.record.sources]
     mine = {c for cs in caps for c in cs}
     out = []
     rng = draw(seed, scene.scene_id, "absent")
     for i in rng.permutation(len(pool))[:8 * ABSENT]:
         c = pool[int(i)]
-        if c not in mine and c not in out and answerable_queries([c], caps, similarity):
+        # not one of the scene's sounds, nor the same sound as another one offered
+        if c not in mine and c not in out and answerable_queries([c], caps + [[o] for o in out], similarity):
             out.append(c)
             if len(out) == ABSENT:
                 break
@@ -150,7 +151,8 @@ def vocabulary_doc(v) -> dict:
     axes = {**{f"direction ({ax.label})" if len(v.direction) == 1 else f"direction ({ax.label}, {'/'.join(ax.bins)})":
                dict(ax.table) for ax in v.direction},
             **({"elevation": dict(v.elevation.table)} if v.elevation else {}),
-            **({"distance": dict(v.distance.table)} if v.distance else {})}
+            **({"distance": dict(v.distance.table)} if v.distance else {}),
+            **({"room": dict(v.room_table)} if v.room_table else {})}
     return {"vocabulary": v.name, "summary": v.summary, "origin": v.origin, "convention": CONVENTION,
             "rule": RULE, "bins": axes, "templates": list(v.templates), "motion_words": MOTION_WORDS}
 

@@ -145,6 +145,16 @@ def _others(scene: SceneFacts, k: int, captions: tuple) -> list:
     return [c for c in captions if c] + [c for c in scene.absent if c not in captions]
 
 
+def _nearest_first(vocab: Vocabulary, b) -> list:
+    """The other direction bins, the nearest to ``b`` first (the hardest distractors)."""
+    others = [o for o in vocab.direction_bins() if o != b]
+    if len(vocab.direction) != 1:
+        return others
+    (axis,) = vocab.direction
+    centre = axis.region(b)[0]
+    return sorted(others, key=lambda o: abs((axis.region(o)[0] - centre + 180.0) % 360.0 - 180.0))
+
+
 # --- the question types -------------------------------------------------------------------
 def ask_where(scene: SceneFacts, vocab: Vocabulary) -> list:
     out = []
@@ -160,7 +170,7 @@ def ask_where(scene: SceneFacts, vocab: Vocabulary) -> list:
         key = f"where:{k}"
         q = _wording(scene, key, ("Where is {a} coming from?", "From which direction does {a} come?",
                                   "In which direction is {a}, seen from the listener?"), a=the(name))
-        wrong = tuple(vocab.answer("direction", o) for o in vocab.direction_bins() if o != b)
+        wrong = tuple(vocab.answer("direction", o) for o in _nearest_first(vocab, b))
         out.append(Question("where", key, q, answer, b, (k,),
                             _angle_evidence(depth, scene, "least depth inside the direction's bin, every active "
                                                           "frame"), wrong, answer))
@@ -350,7 +360,7 @@ def ask_moving(scene: SceneFacts, vocab: Vocabulary) -> list:
                              "measured": "how far the direction stays from counting as a move (the angle margin less "
                                          "the travel); motion class stationary", "distance_change_m":
                                  round(change, 3), "motion": f.motion},
-                            ("no",) if answer == "yes" else ("yes",), answer))
+                            ("no",) if answer == "yes" else ("yes",), "moving" if moving else "still"))
     return out
 
 

@@ -43,6 +43,11 @@ def _wrap(a: float) -> float:
     return (a + 180.0) % 360.0 - 180.0
 
 
+def _deg(a: float) -> str:
+    """An angle as the docs' tables write it (a true minus sign)."""
+    return f"{a:g}°".replace("-", "−")
+
+
 @dataclass(frozen=True)
 class RoomFacts:
     """What room words are decided on: floor area (m²), volume (m³) and reverberation time
@@ -125,6 +130,7 @@ class Vocabulary:
     distance: Axis | None = None
     extras: tuple = ()  # further keys of the bins
     rooms = False  # whether it has words for the room
+    room_table: tuple = ()  # (words, when) of the room, as the docs show them
     # how a clip's caption and the spatial words make one caption: {Cap} / {cap} the
     # caption capitalised / as inside a sentence, {spatial} / {Spatial} the words
     templates: tuple = ("{Cap} {spatial}.", "{Spatial}: {cap}.", "{Cap}; heard {spatial}.")
@@ -273,9 +279,11 @@ class Elsa(Vocabulary):
     summary = "ELSA's words: four directions with 20° gaps, above / below, near / far, room size and reverberation"
     origin = "Devnani et al., ELSA: Learning Spatially-Aware Language and Audio Embeddings (NeurIPS 2024)"
     rooms = True
+    room_table = (("small / medium-sized / large room", "floor area < 50 / 50–100 / > 100 m²"),
+                  ("highly reverberant / acoustically dampened", "T30 > 1 s / T30 < 0.2 s"))
     direction = (Axis("azimuth", _elsa_azimuth, _arcs(ELSA_ARCS), tuple(ELSA_ARCS), (
-        ("front", "|az| ≤ 35°"), ("left", "55° ≤ az ≤ 125°"), ("right", "−125° ≤ az ≤ −55°"),
-        ("back", "|az| ≥ 145°"))),)
+        ("front", "−35° ≤ az ≤ 35°"), ("left", "55° ≤ az ≤ 125°"), ("right", "−125° ≤ az ≤ −55°"),
+        ("back", "az ≥ 145° or az ≤ −145°"))),)
     elevation = Axis("elevation", _elsa_elevation, _arcs({"above": (40.0, 90.0), "below": (-90.0, -40.0)}),
                      ("above", "below"), (("above", "el > 40°"), ("below", "el < −40°")))
     distance = Axis("distance", _elsa_distance, _arcs({"near": (0.0, 1.0), "far": (2.0, math.inf)}),
@@ -348,8 +356,9 @@ class Sectors8(Vocabulary):
                "C50 in dB, time spans; room volume and RT60")
     origin = "Jiang, Gamper, Braun, Sci-Phi: A Large Language Model Spatial Audio Descriptor (2025)"
     rooms = True
+    room_table = (("room_volume=…m^3", "volume to 1 m³ (halves up)"), ("RT60=…s", "T30 to 0.1 s (halves up)"))
     direction = (Axis("azimuth", _sector, lambda b: (45.0 * SECTORS.index(b), 22.5), SECTORS, tuple(
-        (s, f"{_wrap(45 * k - 22.5):g}° ≤ az < {_wrap(45 * k + 22.5):g}°" if s != "back"
+        (s, f"{_deg(_wrap(45 * k - 22.5))} ≤ az < {_deg(_wrap(45 * k + 22.5))}" if s != "back"
          else "az ≥ 157.5° or az < −157.5°") for k, s in enumerate(SECTORS))),)
     elevation = Axis("elevation", _band, _arcs({"upper": (BAND_DEG, 90.0), "horizontal": (-BAND_DEG, BAND_DEG),
                                                 "lower": (-90.0, -BAND_DEG)}), ("upper", "horizontal", "lower"),
@@ -439,8 +448,8 @@ class OClock(Vocabulary):
     summary = "clock hours (12 straight ahead, 3 to the right, 9 to the left) and whole metres"
     origin = "OWL-style o'clock directions (a clock face lying flat, 12 ahead), as spatial audio LLMs use them"
     direction = (Axis("azimuth", _hour, lambda h: (_wrap(-30.0 * (h % 12)), 15.0), tuple(range(1, 13)), tuple(
-        (f"{h} o'clock", f"{_wrap(-30 * (h % 12) - 15):g}° < az ≤ {_wrap(-30 * (h % 12) + 15):g}°"
-         if h != 6 else "az > 165° or az ≤ −165°") for h in (12, 1, 2, 3, 6, 9))),)
+        (f"{h} o'clock", f"{_deg(_wrap(-30 * (h % 12) - 15))} < az ≤ {_deg(_wrap(-30 * (h % 12) + 15))}"
+         if h != 6 else "az > 165° or az ≤ −165°") for h in (12, *range(1, 12)))),)
     distance = Axis("distance", lambda d: _half_up(d), _step(1.0), (), (
         ("within half a metre", "d < 0.5 m"), ("about N m away", "N − 0.5 ≤ d < N + 0.5 (N ≥ 1)")), 1.0)
     _HOUR = re.compile(r"\bat (\d+) o'clock\b")
@@ -488,7 +497,7 @@ class Bat(Vocabulary):
     direction = (Axis("azimuth", _lateral, _arcs({"left": (90.0, 90.0), "right": (-90.0, 90.0)}), ("left", "right"),
                       (("left", "0° < az < 180°"), ("right", "−180° < az < 0°"))),
                  Axis("azimuth", _frontal, _arcs({"front": (0.0, 90.0), "back": (180.0, 90.0)}), ("front", "back"),
-                      (("front", "|az| < 90°"), ("back", "|az| > 90°"))))
+                      (("front", "−90° < az < 90°"), ("back", "az > 90° or az < −90°"))))
     elevation = Axis("elevation", lambda el: "above" if el > 0 else "below" if el < 0 else None,
                      _arcs({"above": (0.0, 90.0), "below": (-90.0, 0.0)}), ("above", "below"),
                      (("above", "el > 0°"), ("below", "el < 0°")))
