@@ -413,8 +413,8 @@ def _wrong_on_the_labels(row, v, srcs):
                 wrong_somewhere |= where not in frame_directions(v, named(srcs, cap))
             assert wrong_somewhere, option
         else:  # the option is a sound: one of the scene's that is not the answer, or one that is not there
-            holders = [s for s in srcs if any(c.strip().rstrip(".") == option for c in s.rec.captions)]
-            winner = [s for s in srcs if any(c.strip().rstrip(".") == answer for c in s.rec.captions)]
+            holders = [s for s in srcs if any(said(c) == option for c in s.rec.captions)]
+            winner = [s for s in srcs if any(said(c) == answer for c in s.rec.captions)]
             assert winner and not any(h is winner[0] for h in holders), (option, answer)
             if t == "what_at" and holders:
                 i, b = at_phrase(v, q)

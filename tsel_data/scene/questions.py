@@ -142,7 +142,8 @@ def _sub(truth: Truth, order: list) -> Truth:
 def _others(scene: SceneFacts, k: int, captions: tuple) -> list:
     """Distractor captions for an answer naming source k: ``captions`` (of other sources
     that do not describe k) first, then sounds that are not in the scene."""
-    return [c for c in captions if c] + [c for c in scene.absent if c not in captions]
+    mine = [said(c) for c in captions if c]
+    return mine + [said(c) for c in scene.absent if said(c) not in mine]
 
 
 def _nearest_first(vocab: Vocabulary, b) -> list:
@@ -288,7 +289,7 @@ def _pairwise(kind: str, relation: Relation, opposite: Relation, forms: dict):
                 q = _wording(scene, key, forms[asked], a=the(scene.names[mentioned[0]]),
                              b=the(scene.names[mentioned[1]]))
                 other = b if answer == a else a
-                wrong = tuple(_others(scene, answer, (scene.distinct[answer][other],)))
+                wrong = tuple(_others(scene, answer, (scene.names[other],)))  # as the question names it
                 evidence = {"value": ev["value"], "margin": ev["margin"], "unit": ev["unit"],
                             "measured": f"{relation}: source {first} against source {b if first == a else a}",
                             **({"onsets": ev["onsets"]} if "onsets" in ev else {})}
