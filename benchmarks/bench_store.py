@@ -22,8 +22,9 @@ All on the built-in demo corpus, 10 s 24 kHz mic4 scenes, measured in one run:
    item by item without workers (the baseline); and the worst ratio of a DataLoader with
    workers to the same way without (the goal: never below 1).
 5. **writing a scene's audio**: one shard of 16 scenes written through h5py
-   (``audio[i] = x``, the baseline) and through ``write_direct_chunk`` (the writer's
-   way), CPU ms per scene, median of interleaved rounds.
+   (``audio[i] = x``, the baseline and the writer's way) and through
+   ``write_direct_chunk`` (the same samples in another file layout, so not used:
+   store/writer.py), CPU ms per scene, median of interleaved rounds.
 6. **clips as they come**: the time to render a scene (``render_scene``, one process,
    the clip cache emptied before each scene, as with a large corpus) when the corpus is
    24 kHz mono WAV (the baseline), the same clips as 44.1 kHz stereo 24-bit WAV, and

@@ -56,22 +56,6 @@ def encode(audio: np.ndarray, coding: str, fs: int):
     return np.frombuffer(buf.getvalue(), dtype=np.uint8)
 
 
-def write_row(ds: h5py.Dataset, i: int, row, coding: str) -> None:
-    """Write scene ``i``'s row (:func:`encode`) into the ``audio`` dataset ``ds``.
-
-    float32 and int16 rows are one unfiltered chunk each: their little-endian bytes go
-    to the file as that chunk (``write_direct_chunk``), skipping HDF5's selection and
-    conversion (2.4 against 1.0 ms a scene here), the same bytes on disk. FLAC rows are
-    variable-length and go through h5py."""
-    if coding == AudioCoding.FLAC:
-        ds[i] = row
-        return
-    data = np.ascontiguousarray(row, dtype=ds.dtype.newbyteorder("<"))
-    if data.shape != ds.shape[1:]:
-        raise ValueError(f"a scene's audio is {list(data.shape)}, the shard's rows {list(ds.shape[1:])}")
-    ds.id.write_direct_chunk((i,) + (0,) * (ds.ndim - 1), data)
-
-
 def coding_of(ds: h5py.Dataset) -> str:
     """The coding of an ``audio`` dataset (no attribute: float32, as format version 1 wrote it)."""
     v = ds.attrs.get("audio_coding")
