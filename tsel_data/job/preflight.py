@@ -20,6 +20,7 @@ import tempfile
 from dataclasses import replace
 
 from ..banks.scenes import bank_problems, resolve_bank
+from ..choices import CheckLevel
 from ..config import Config, config_problems, geometry_problems, rooms_without_bank
 from ..config.receiver import array_poses, hrtf_problem
 from ..core.report import CheckReport
@@ -44,7 +45,8 @@ def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan
     workers : int
         Processes for clip checks and planning.
     plan : bool
-        Also sample every scene in memory.
+        Also sample every scene in memory. Without it, ``corpus.check = "drawn"`` checks
+        every clip in full: no plan says which it draws.
 
     Returns
     -------
@@ -70,6 +72,9 @@ def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan
         rep.error(e)
     if out_dir:
         _check_out_dir(cfg, out_dir, rep)
+    if not plan and cfg.corpus.check == CheckLevel.DRAWN:
+        # no plan says which clips it would draw: any may be, so each is checked as drawn ones are
+        cfg = replace(cfg, corpus=replace(cfg.corpus, check=CheckLevel.FULL))
     with tempfile.TemporaryDirectory(prefix="tsel-check-") as scratch:
         catalogs = _check_corpus(cfg, out_dir, Layout(scratch), workers, rep)
         if plan and catalogs and not rep.errors:

@@ -291,12 +291,18 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
     return MixParts(active, images, gains, norm, levels, peak, mix, rt60_measured, tuple(others), noise, described)
 
 
+# a moving simulated source is measured on its knot nearest the middle of its sounding
+# frames when that knot is at most this far from it (half plan.placement's longest hop)
+KNOT_NEAR_S = 0.05
+
+
 def source_descriptors(recipe: SceneRecipe, rirs: dict, active: np.ndarray) -> tuple:
     """Each source's acoustic descriptors (acoustics/descriptors.py) at the first receiver,
     from the RIRs it was rendered with (``rirs``, :func:`spatial_images`' ``keep``); None
     for positionless sources. A moving source is measured where it is in the middle of the
     frames it sounds in: at the knot nearest then (a simulated one: that knot's image part
-    and the tail its knots share, :func:`knot_rir`)."""
+    and the tail its knots share, :func:`knot_rir`, when the knot is within
+    :data:`KNOT_NEAR_S`; else a static RIR simulated there, the same room, method and seed)."""
     out = []
     level_ch = recipe.array.spec.level_slice()
     for k, s in enumerate(recipe.sources):
@@ -306,7 +312,13 @@ def source_descriptors(recipe: SceneRecipe, rirs: dict, active: np.ndarray) -> t
         heard = np.nonzero(active[k])[0]
         t = (heard[0] + heard[-1] + 1) / 2 * recipe.label_hop if len(heard) else recipe.duration / 2
         if s.path:
-            rir = knot_rir(rirs[k], int(np.argmin(np.abs(np.asarray(s.path)[:, 0] - t))), recipe.fs)
+            times = np.asarray(s.path)[:, 0]
+            j = int(np.argmin(np.abs(times - t)))
+            if abs(times[j] - t) <= KNOT_NEAR_S:  # a planned path's knot (≤ 100 ms apart): where the source is
+                rir = knot_rir(rirs[k], j, recipe.fs)
+            else:  # knots far apart (a path by hand): a static RIR simulated where the source is then
+                rir = simulate_rirs(recipe.room, recipe.array, s.position_at(t)[None], recipe.fs,
+                                    method=recipe.rir_method, seed=recipe.seed + 1 + k).rirs[0]
         elif s.bank is not None:
             rir = rirs[k][int(np.argmin(np.abs(np.asarray(s.bank.times) - t)))]
         else:
