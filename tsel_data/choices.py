@@ -107,7 +107,8 @@ class Role(StrEnum):
 
 
 class Spatial(StrEnum):
-    """How a source is rendered: through the room, or added to every channel unspatialised."""
+    """How a source is rendered: through the room, added to every channel unspatialised, or as a
+    diffuse field at the array (``scene.additive = "diffuse"``)."""
 
     DIRECTIONAL = "directional"
     ADDITIVE = "additive"
