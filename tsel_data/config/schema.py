@@ -194,8 +194,10 @@ class SceneConfig:
                             "first frame, so `starts_first` / `starts_last` queries need this, e.g. "
                             "`[\"uniform\", 0.0, 3.0]`", unit="s", ge=0.0, new=True)
     same_kind_distractors: float = option(0.0, "probability that an interferer is a different clip of the target's "
-                                               "kind (caption similarity at least `same_kind_similarity`); such "
-                                               "scenes get a composite or relational query, never a bare caption",
+                                               "kind (caption similarity at least `same_kind_similarity`, naming "
+                                               "every sound event the query caption names and none the target does "
+                                               "not: docs/queries.md); such scenes get a composite or relational "
+                                               "query, never a bare caption",
                                           unit="probability", ge=0.0, le=1.0, new=True)
     same_kind_similarity: float = option(0.6, "a same-kind distractor's captions are at least this similar to the "
                                               "query caption", unit="similarity 0-1", gt=0.0, le=1.0, new=True)
