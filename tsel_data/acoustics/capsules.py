@@ -31,7 +31,7 @@ from ..choices import Baffle, ReceiverModel
 from ..core.geometry import SOUND_SPEED, array_to_room, foa_gains_of
 from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
 from ..receivers import ArrayPose
-from .ism import FD_PHASES, FD_TAPS, _split, add_impulses, fd_bank, grid_to_signal, new_grid
+from .ism import FD_TAPS, _split, add_impulses, fd_bank, grid_to_signal, new_grid
 from .late import FOA_DIFFUSE_GAINS, csd_noise, diffuse_coherence
 from .late import diffuse_noise
 
