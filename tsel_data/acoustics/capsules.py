@@ -322,10 +322,17 @@ def _place_kernels(d, w, cos, table, offset: int, length: int) -> np.ndarray:
 class Binaural:
     """Two ears (left, right) through a SOFA HRTF: each image source is heard through the
     HRIR of its direction in the head frame (the array frame; the head's yaw is the
-    array's), the nearest measurement or the measured triangle around it with barycentric
-    weights (``array.interpolation``). The HRIRs' common leading silence is removed
+    array's), the nearest measurement or the measured triangle around it
+    (``array.interpolation``). The HRIRs' common leading silence is removed
     (acoustics/hrtf.py), so the ears hear an image within a fraction of a millisecond of
-    its arrival at the head's centre. The late tail has the HRTF's diffuse cross-spectra."""
+    its arrival at the head's centre. The late tail has the HRTF's diffuse cross-spectra.
+
+    ``interpolated`` blends time-aligned responses: each measured IR without its onset
+    (acoustics/hrtf.py ``aligned_hrirs``: its delay behind its minimum-phase version)
+    takes its barycentric weight, and the image is placed, ear by ear, at the blend of
+    the three onsets, so the ITD is interpolated and the shapes add in phase. (Blending
+    the IRs as measured adds copies a few samples apart: comb notches of -10 to -40 dB
+    and ILD errors up to 1.7 dB between measurements 15° apart.)"""
 
     coincident = False
     n_channels = 2
@@ -353,19 +360,38 @@ class Binaural:
         idx, wk = hrtf_weights(self.hrtf, u, self.mode)
         t = r / SOUND_SPEED
         w = amp / (4 * np.pi * r) * fade_out(t, fade)
-        for k in range(idx.shape[1]):
-            grid.add(idx[:, k], t * self.fs, w * wk[:, k])
+        if self.mode == "nearest":
+            for k in range(idx.shape[1]):
+                grid.add(idx[:, k], t * self.fs, w * wk[:, k])
+            return
+        from .hrtf import aligned_hrirs, hrir_onsets  # loaded with the HRTF (_hrtf)
+
+        _, lead = aligned_hrirs(self.hrtf)
+        onset = np.einsum("nk,nke->ne", wk, hrir_onsets(self.hrtf)[idx])  # [N, 2] samples, blended
+        for e in range(2):  # rows 2m + e: measurement m's aligned IR at ear e
+            for k in range(idx.shape[1]):
+                grid.add(2 * idx[:, k] + e, t * self.fs + onset[:, e] - lead, w * wk[:, k])
 
     def render(self, grid) -> np.ndarray:
-        """Impulses gathered per measurement, rendered with the interpolator, then each
-        measurement's signal through its HRIR pair (one FFT product, summed)."""
+        """Impulses gathered per measurement (``interpolated``: per measurement and ear),
+        rendered with the interpolator, then each measurement's signal through its HRIR
+        pair (its aligned IR at that ear; one FFT product, summed)."""
         used, rows = grid.signals()
         n = grid.length
         if not len(used):
             return np.zeros((2, n))
-        irs = self.hrtf.irs[used].astype(np.float64)  # [U, 2, N]
+        if self.mode == "nearest":
+            irs = self.hrtf.irs[used].astype(np.float64)  # [U, 2, N]
+            n_fft = sfft.next_fast_len(n + irs.shape[-1] - 1, real=True)
+            spec = np.einsum("uf,uef->ef", sfft.rfft(rows, n_fft, workers=1), sfft.rfft(irs, n_fft, workers=1))
+            return sfft.irfft(spec, n_fft, workers=1)[:, :n]
+        from .hrtf import aligned_hrirs  # loaded with the HRTF (_hrtf)
+
+        aligned, _ = aligned_hrirs(self.hrtf)
+        irs = aligned[used // 2, used % 2].astype(np.float64)  # [U, N]
         n_fft = sfft.next_fast_len(n + irs.shape[-1] - 1, real=True)
-        spec = np.einsum("uf,uef->ef", sfft.rfft(rows, n_fft, workers=1), sfft.rfft(irs, n_fft, workers=1))
+        prod = sfft.rfft(rows, n_fft, workers=1) * sfft.rfft(irs, n_fft, workers=1)
+        spec = np.stack([prod[used % 2 == e].sum(axis=0) for e in range(2)])
         return sfft.irfft(spec, n_fft, workers=1)[:, :n]
 
     def diffuse_noise(self, rng, n_sets: int, n: int) -> np.ndarray:

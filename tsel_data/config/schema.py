@@ -273,7 +273,8 @@ class ArrayConfig:
                            "KEMAR set; the head's yaw is `yaw`", path=True, new=True)
     hrtf_interpolation: str = option("nearest", "binaural: each image source through the `nearest` measured HRIR, "
                                                 "or `interpolated` (the measured triangle around its direction, "
-                                                "barycentric weights)", choices=HrtfInterpolation, new=True)
+                                                "barycentric weights, blended time-aligned: onsets removed, "
+                                                "blended, the interpolated ITD put back)", choices=HrtfInterpolation, new=True)
 
 
 @dataclass(frozen=True)
