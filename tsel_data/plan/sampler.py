@@ -25,6 +25,7 @@ from ..corpus.clip import Clip
 from ..errors import TselError
 from ..receivers import receiver
 from ..runtime.pool import ordered_pool
+from ..render.hardware import draw_hardware
 from ..render.noise import draw_noise
 from ..scene.queries import margins as relation_margins
 from ..scene.recipe import BUILTIN_DEMO_BANK, BankRef, QueryPlan, Roots, SceneRecipe, Source, plan_roots
@@ -151,8 +152,9 @@ def scene_rng(seed: int, split: str, index: int, stream: int = 0) -> np.random.G
     """The generator of every draw of scene ``index`` of ``split``.
 
     Streams 1 (query decisions: the query type, same-kind draws, the relation order and
-    wording) and 2 (each source's start, ``scene.onset``) are independent generators of
-    the same scene, so they never shift the draws of stream 0 (clips, levels, room,
+    wording), 2 (each source's start, ``scene.onset``), 3 (``[noise]``), 4 (source powers)
+    and 5 (``[hardware]``: each receiver's capsules and clocks) are independent generators
+    of the same scene, so they never shift the draws of stream 0 (clips, levels, room,
     placement) that earlier releases made.
     """
     key = [seed, zlib.crc32(split.encode("utf-8")), index]
@@ -262,6 +264,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
         target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db, bank=bank,
         query_plan=None if pairs is None else pairs.plan(chosen),
         noise=_noise_items(cfg, split, index, cat, chosen, bank.room if bank else None),
+        hardware=draw_hardware(cfg, scene_rng(cfg.seed, split, index, 5), array),
     )
     return recipe.validate(wall_margin=cfg.sources.wall_margin - 1e-6)
 
