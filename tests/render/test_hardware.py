@@ -166,6 +166,24 @@ def test_record_and_shard_hold_what_was_drawn_and_stems_add_up(demo_corpus, tmp_
                                               dataset_roots(out), with_noise=True)
             assert same
             np.testing.assert_allclose(stems.sum(axis=0) + noise, scene.audio, atol=2e-5)
+    # tsel inspect says it in words, for the receiver it shows
+    from tsel_data.tools.inspect import inspect_scene
+
+    for fmt, k in (("tetra", 0), ("mic4", 1)):
+        _, text = inspect_scene(out, "train/0", receiver=fmt)
+        hw = recipes[0].hardware[k]
+        assert "microphones as built (a typical MEMS board" in text
+        assert " ".join(f"{g:+.2f}" for g in hw.gain_db) in text and "dBFS(A) at -26 dBFS for 94 dB SPL" in text
+
+
+def test_inspect_words_a_second_devices_clock():
+    from tsel_data.store.records import HardwareRecord
+    from tsel_data.tools.inspect import hardware_lines
+
+    hw = HardwareRecord("none", [0.0] * 4, [0.0] * 4, [0.0] * 4, 2, [0.0] * 4, devices=[0, 0, 1, 1],
+                        clock_offset_us=[0.0, 12.5], clock_ppm=[0.0, -8.0])
+    text = "\n".join(hardware_lines(hw, 10.0))
+    assert "device 1 (channels 2, 3) lags device 0 by +12.5 us at the start, drifting -8.00 ppm (-67.5 us" in text
 
 
 def test_datasets_without_hardware_keep_their_recipes(demo_corpus, tmp_path):
