@@ -119,6 +119,12 @@ class HardwareRecord(JsonFields, _JsonMapping):
     def n_channels(self) -> int:
         return len(self.gain_db)
 
+    @property
+    def response(self):
+        """None: a measured response's table is in the recipe (the record names its file), so
+        what undoes the hardware from a record (dsp/hardware.py ``unhear``) leaves it."""
+        return None
+
     def channel_clocks(self) -> tuple[tuple, tuple]:
         """(offset µs [C], ppm [C]): each capsule's device clock."""
         dev = self.devices or [0] * self.n_channels
@@ -327,6 +333,10 @@ class SceneRecord(JsonFields, _JsonMapping):
     @property
     def recorded(self) -> bool:
         return self.recording is not None
+
+    def receiver(self, fmt: str) -> ArrayRecord | None:
+        """The ArrayRecord of the receiver named ``fmt`` (``array`` or one of ``receivers``), or None."""
+        return next((a for a in (self.array, *self.receivers) if a.format == fmt), None)
 
     @property
     def query_margin(self) -> float:

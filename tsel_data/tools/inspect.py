@@ -115,7 +115,7 @@ def summary(scene: Scene) -> str:
                      + (f"  {', '.join(extra)}" if extra else ""))
         for cap in info.captions:
             lines.append(f"        caption: {cap}")
-    hw = next((a.hardware for a in (rec.array, *rec.receivers) if a.format == scene.format), None)
+    hw = getattr(rec.receiver(scene.format), "hardware", None)
     if hw is not None:
         lines += hardware_lines(hw, dur)
     if rec.noise:
