@@ -238,3 +238,15 @@ def test_a_measured_response_shapes_every_capsule(demo_corpus, tmp_path):
     _, pi = welch(ideal[0], fs=FS, nperseg=4096)
     for freq, want in ((500, 0.0), (3000, -6.0), (8000, 3.0)):
         assert abs(10 * np.log10(np.interp(freq, f, pb) / np.interp(freq, f, pi)) - want) < 0.3
+
+
+def test_a_profile_and_a_key_set_to_the_default_read_back_the_same():
+    """What a dataset stores of [hardware] parses back to the same config (resume, rebuild):
+    a key set to its default under a profile stays set, not the profile's."""
+    from tsel_data.config import parse_config
+
+    cfg = load_config(preset="demo", overrides=['hardware.profile="mems"', "hardware.gain_db=0.0",
+                                                "hardware.sensitivity_dbfs=-26.0"])
+    stored = cfg.to_dict()["hardware"]
+    assert stored["gain_db"] == 0.0 and stored["delay_us"] == ["uniform", -5.0, 5.0]
+    assert parse_config(cfg.to_dict(), stored=True).hardware == cfg.hardware

@@ -457,7 +457,9 @@ class Config:
         d = jsonable(self)
         if not every_key:
             for name, sec in ((sec, getattr(self, sec)) for sec in SECTIONS):
-                _drop_unset(sec, d[name])
+                # keys a hardware profile fills are kept even at their default: read back,
+                # the config must not take the profile's value for a key it set to the default
+                _drop_unset(sec, d[name], keep=HARDWARE_PROFILES.get(getattr(sec, "profile", None), ()))
                 if name in NEW_SECTIONS and not d[name]:
                     del d[name]  # a section added later, left unset: datasets made without it keep their bytes
             for name, sp in self.splits.items():
@@ -483,9 +485,10 @@ TOP_KEYS = ("name", "seed", "on_bad_clip", "splits", *SECTIONS)
 TOP_FIELDS = ("name", "seed", "on_bad_clip")
 
 
-def _drop_unset(section, d: dict) -> None:
-    """Remove from ``d`` (a section as plain data) the ``new`` keys left at their default."""
+def _drop_unset(section, d: dict, keep=()) -> None:
+    """Remove from ``d`` (a section as plain data) the ``new`` keys left at their default
+    (but those in ``keep``)."""
     default = type(section)()
     for f in fields(section):
-        if f.metadata.get("new") and getattr(section, f.name) == getattr(default, f.name):
+        if f.metadata.get("new") and f.name not in keep and getattr(section, f.name) == getattr(default, f.name):
             d.pop(f.name, None)
