@@ -250,3 +250,20 @@ def test_a_profile_and_a_key_set_to_the_default_read_back_the_same():
     stored = cfg.to_dict()["hardware"]
     assert stored["gain_db"] == 0.0 and stored["delay_us"] == ["uniform", -5.0, 5.0]
     assert parse_config(cfg.to_dict(), stored=True).hardware == cfg.hardware
+
+
+def test_a_presets_file_takes_a_profile(tmp_path):
+    """`tsel presets NAME` writes the keys a profile fills commented out: the file reads back
+    to the preset, and with `profile = "mems"` set in it, to the profile's values."""
+    from tsel_data.config import to_toml
+    from tsel_data.config.load import preset_text
+
+    cfg = load_config(preset="demo")
+    text = to_toml(cfg, comments=True, header=preset_text("demo").splitlines()[0])
+    assert "\n# gain_db = 0.0\n" in text and '\nprofile = "none"\n' in text
+    path = tmp_path / "my.toml"
+    path.write_text(text)
+    assert load_config(path=str(path)) == cfg
+    path.write_text(text.replace('\nprofile = "none"\n', '\nprofile = "mems"\n'))
+    assert load_config(path=str(path)).hardware == load_config(preset="demo",
+                                                               overrides=['hardware.profile="mems"']).hardware
