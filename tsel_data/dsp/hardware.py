@@ -14,8 +14,8 @@ fields of :class:`tsel_data.scene.hardware.Hardware`, read here by attribute) an
   magnitude response (interpolated in log frequency, flat beyond its ends). One FFT over
   the scene with 0.5 s of padding, so nothing wraps.
 - :func:`self_noise`: white Gaussian noise per capsule, scaled so that its A-weighted level
-  (IEC 61672-1 weighting, over the whole scene) is the capsule's self-noise in dBFS:
-  self_noise_dba - 94 + sensitivity_dbfs.
+  (IEC 61672-1 weighting, expected over the whole scene) is the capsule's self-noise in
+  dBFS: self_noise_dba - 94 + sensitivity_dbfs.
 - :func:`clock_warp`: the channels of device d lag the first device's by
   offset_d + ppm_d · 10⁻⁶ · t (a band-limited, time-varying fractional delay: the Farrow
   filter of dsp/delaypath.py, accurate to -50 dB below half the Nyquist frequency).
@@ -26,15 +26,17 @@ fields of :class:`tsel_data.scene.hardware.Hardware`, read here by attribute) an
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
-from . import realfft as sfft
+from . import fft, realfft as sfft
 from .delaypath import FD_HALF, fractional_kernel
 
 PAD_S = 0.5  # s of zeros after the scene: the high-pass's tail and the tilt's ringing do not wrap
 TILT_FLOOR_HZ = 50.0  # the tilt is flat below (no infinite gain at DC)
 UNDO_FLOOR = 0.1  # undoing a response divides by at most 1 / 0.1 (+20 dB)
+SMOOTH_POINTS = 8193  # frequencies the smooth parts of a response are evaluated at (then interpolated)
 _CHUNK = 16384  # samples per block of the clock warp
 
 
@@ -79,21 +81,39 @@ def highpass(freqs, corner: float, order: int) -> np.ndarray:
 
 
 def capsule_responses(hw, freqs) -> np.ndarray:
-    """H_c(f) [C, F] complex of every capsule (module docstring)."""
+    """H_c(f) [C, F] complex of every capsule (module docstring): magnitudes and phases
+    summed apart, one complex exponential at the end. The delay's phase is exact at every
+    frequency; the smooth rest (high-pass, tilt, measured response) is evaluated on at
+    most :data:`SMOOTH_POINTS` frequencies and interpolated (their log magnitude and phase
+    change by far less than a grid step of fs / 16k allows to see)."""
     f = np.asarray(freqs, dtype=np.float64)
     C = hw.n_channels
-    gain = 10.0 ** (np.asarray(hw.gain_db, dtype=np.float64) / 20.0)
-    tau = np.asarray(hw.delay_us, dtype=np.float64) * 1e-6
-    h = gain[:, None] * np.exp(-2j * np.pi * f[None, :] * tau[:, None])
+    coarse = f if len(f) <= SMOOTH_POINTS else np.linspace(f[0], f[-1], SMOOTH_POINTS)
+    log_mag = np.repeat((np.asarray(hw.gain_db, dtype=np.float64) * (math.log(10.0) / 20.0))[:, None],
+                        len(coarse), 1)
+    smooth_phase = np.zeros((C, len(coarse)))
     for c in range(C):
         if hw.highpass_hz[c] > 0:
-            h[c] *= highpass(f, hw.highpass_hz[c], hw.highpass_order)
+            hp = highpass(coarse, hw.highpass_hz[c], hw.highpass_order)
+            log_mag[c] += np.log(np.maximum(np.abs(hp), 1e-300))
+            smooth_phase[c] = np.angle(hp)
     if hw.tilt_db and any(hw.tilt_db):
-        octaves = np.log2(np.maximum(f, TILT_FLOOR_HZ) / 1000.0)
-        h *= 10.0 ** (np.asarray(hw.tilt_db, dtype=np.float64)[:, None] * octaves[None, :] / 20.0)
+        octaves = np.log2(np.maximum(coarse, TILT_FLOOR_HZ) / 1000.0)
+        log_mag += (np.asarray(hw.tilt_db, dtype=np.float64) * (math.log(10.0) / 20.0))[:, None] * octaves[None, :]
     if hw.response:
-        h *= _measured(hw.response, f, C)
-    return h
+        log_mag += np.log(_measured(hw.response, coarse, C))
+    if coarse is not f:
+        log_mag = np.stack([np.interp(f, coarse, row) for row in log_mag])
+        smooth_phase = np.stack([np.interp(f, coarse, row) for row in smooth_phase])
+    # float32 from here (the spectrum it multiplies is complex64): a phase of at most
+    # 2π · fs/2 · 1 ms (the largest delay) keeps 1e-5 rad of precision
+    phase = (smooth_phase + (-2.0 * np.pi * np.asarray(hw.delay_us, dtype=np.float64) * 1e-6)[:, None]
+             * f[None, :]).astype(np.float32)
+    mag = np.exp(log_mag.astype(np.float32))
+    out = np.empty(phase.shape, dtype=np.complex64)
+    out.real = mag * np.cos(phase)
+    out.imag = mag * np.sin(phase)
+    return out
 
 
 def _measured(rows, f: np.ndarray, C: int) -> np.ndarray:
@@ -106,28 +126,46 @@ def _measured(rows, f: np.ndarray, C: int) -> np.ndarray:
 
 
 def _filter(audio: np.ndarray, fs: float, response) -> np.ndarray:
-    """``audio`` [C, T] through ``response(freqs) -> [C, F]``, zero-padded by PAD_S."""
-    x = np.asarray(audio, dtype=np.float64)
+    """``audio`` [C, T] through ``response(freqs) -> [C, F]``, zero-padded by PAD_S: float32
+    [C, T] (float32 transforms, dsp/fft.py: errors near 1e-7 of full scale)."""
+    x = np.asarray(audio, dtype=np.float32)
     T = x.shape[-1]
-    n = sfft.next_fast_len(T + int(PAD_S * fs), real=True)
-    spec = sfft.rfft(x, n) * response(sfft.rfftfreq(n, 1.0 / fs))
-    return sfft.irfft(spec, n)[..., :T]
+    n = fft.good_size(T + int(PAD_S * fs))
+    padded = fft.empty(x.shape[:-1] + (n,))
+    padded[..., :T] = x
+    padded[..., T:] = 0.0
+    spec = fft.rfft(padded)
+    spec *= response(np.arange(n // 2 + 1) * (fs / n)).astype(np.complex64)
+    return fft.irfft(spec, n, overwrite=True)[..., :T]
 
 
 def through_capsules(audio, hw, fs: float) -> np.ndarray:
     """The sound at every capsule as its channel carries it: float32 [C, T]."""
-    return _filter(audio, fs, lambda f: capsule_responses(hw, f)).astype(np.float32)
+    return np.ascontiguousarray(_filter(audio, fs, lambda f: capsule_responses(hw, f)))
+
+
+@lru_cache(maxsize=8)
+def white_a_weighted_dbfs(n: int, fs: float) -> float:
+    """The expected A-weighted level (dBFS) of n samples of white noise of unit variance:
+    Parseval over the n-point spectrum, E|X_k|² = n."""
+    a2 = a_weighting(np.arange(n // 2 + 1) * (fs / n)) ** 2
+    w = np.full(len(a2), 2.0)
+    w[0] = 1.0
+    if n % 2 == 0:
+        w[-1] = 1.0
+    return 10.0 * math.log10(float(a2 @ w) / n)
 
 
 def self_noise(hw, n: int, fs: float) -> np.ndarray | None:
     """Every capsule's self-noise, float32 [C, n] (None without): white, from ``hw.seed``,
-    each channel at its A-weighted level :meth:`~tsel_data.scene.hardware.Hardware.self_noise_dbfs`."""
+    each channel at its A-weighted level :meth:`~tsel_data.scene.hardware.Hardware.self_noise_dbfs`
+    (scaled by the expected level of white noise; a 10 s scene's own is within 0.01 dB)."""
     levels = hw.self_noise_dbfs()
     if levels is None:
         return None
-    w = np.random.default_rng([hw.seed, 0]).standard_normal((hw.n_channels, n))
-    have = a_weighted_dbfs(w, fs)
-    return (w * 10.0 ** ((np.asarray(levels) - have) / 20.0)[:, None]).astype(np.float32)
+    w = np.random.default_rng([hw.seed, 0]).standard_normal((hw.n_channels, n), dtype=np.float32)
+    gain = 10.0 ** ((np.asarray(levels) - white_a_weighted_dbfs(n, fs)) / 20.0)
+    return w * gain.astype(np.float32)[:, None]
 
 
 def clock_warp(audio, hw, fs: float, undo: bool = False) -> np.ndarray:
