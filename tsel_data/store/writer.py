@@ -49,7 +49,7 @@ def _query_row(s: Scene) -> dict | None:
             "pairing": rec.pairing}
 
 
-# Per-scene columns of a shard of a dataset with [hardware] (docs/format.md "Hardware"),
+# Per-scene columns of a shard of a dataset with [hardware] (docs/format.md "Microphones as built"),
 # per receiver: name -> (dtype, fill where a scene has none). Per capsule [N, C] but
 # sensitivity_dbfs and highpass_order [N]; a capsule's clock is its device's.
 HARDWARE_COLUMNS = {"gain_db": np.float32, "delay_us": np.float32, "highpass_hz": np.float32,
