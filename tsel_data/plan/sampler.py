@@ -265,6 +265,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
         query_plan=None if pairs is None else pairs.plan(chosen),
         noise=_noise_items(cfg, split, index, cat, chosen, bank.room if bank else None),
         hardware=draw_hardware(cfg, scene_rng(cfg.seed, split, index, 5), array),
+        descriptors=cfg.output.descriptors,
     )
     return recipe.validate(wall_margin=cfg.sources.wall_margin - 1e-6)
 

@@ -210,7 +210,9 @@ class SceneRecipe:
     the same pass, at the array's centre and yaw (``scene.receivers``). noise: what else
     it hears, unlabelled (:class:`NoiseItem`, ``[noise]``). hardware: each receiver's
     microphones as built (``[hardware]``; :class:`~tsel_data.scene.hardware.Hardware`), in
-    the order ``array``, ``receivers``; empty: ideal capsules.
+    the order ``array``, ``receivers``; empty: ideal capsules. descriptors: the record gets
+    each source's acoustic descriptors and motion class, and the room's size
+    (``output.descriptors``).
     """
 
     scene_id: str
@@ -233,6 +235,7 @@ class SceneRecipe:
     receivers: tuple[ArrayPose, ...] = ()
     noise: tuple[NoiseItem, ...] = ()
     hardware: tuple[Hardware, ...] = ()
+    descriptors: bool = False
 
     kind = "rendered"  # a plan line's kind (a recorded scene's recipe says "recorded")
 
@@ -283,6 +286,8 @@ class SceneRecipe:
             d["noise"] = [n.to_dict() for n in self.noise]
         if self.hardware:  # [hardware]: absent otherwise, so recipes without it keep their bytes
             d["hardware"] = [h.to_dict() for h in self.hardware]
+        if self.descriptors:  # absent otherwise: recipes made before it keep their bytes
+            d["descriptors"] = True
         return d
 
     def to_json(self) -> str:
