@@ -216,7 +216,8 @@ def test_hardware_config_mistakes_are_one_line(tmp_path):
     for over, message in ((["hardware.devices=[0, 0, 1]"], "names 3 capsules but mic4 has 4"),
                           (["hardware.devices=[1, 1, 2, 2]"], "whole number from 0"),
                           ([f'hardware.response="{bad}"'], r"response.csv:3: 'not,numbers' is not numbers"),
-                          (["hardware.highpass_hz=5000.0"], "hardware.highpass_hz must be")):
+                          (["hardware.highpass_hz=5000.0"], "hardware.highpass_hz must be"),
+                          (["hardware.profile=[]"], "hardware.profile must be a str")):
         with pytest.raises(ConfigError, match=message) as e:
             load_config(preset="demo", overrides=over)
         assert "\n" not in str(e.value)

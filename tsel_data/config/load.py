@@ -143,8 +143,9 @@ def parse_config(raw: dict, where: str = "config", validate: bool = True, stored
 def _with_profile(hardware):
     """``[hardware]`` with its profile's values (schema.HARDWARE_PROFILES) under every key it
     leaves unset, so the parsed config, and the config a dataset stores, hold what is drawn."""
-    if not isinstance(hardware, dict) or hardware.get("profile") not in HARDWARE_PROFILES:
-        return hardware
+    profile = hardware.get("profile") if isinstance(hardware, dict) else None
+    if not isinstance(profile, str) or profile not in HARDWARE_PROFILES:
+        return hardware  # the schema says what is wrong with a profile of another type
     return {**HARDWARE_PROFILES[hardware["profile"]], **hardware}
 
 
