@@ -46,6 +46,15 @@ class SensorLevel(StrEnum):
     SNR = "snr"
 
 
+class HardwareProfile(StrEnum):
+    """``hardware.profile``: the microphones as built, typical values for every key left unset
+    (config/schema.py ``HARDWARE_PROFILES``), or none (ideal capsules unless keys are set)."""
+
+    NONE = "none"
+    MEMS = "mems"
+    MEASUREMENT = "measurement"
+
+
 class SegmentRule(StrEnum):
     """``noise.ambience_segments``: which stretch of an ambience recording a scene hears."""
 
@@ -107,7 +116,8 @@ class Role(StrEnum):
 
 
 class Spatial(StrEnum):
-    """How a source is rendered: through the room, or added to every channel unspatialised."""
+    """How a source is rendered: through the room, added to every channel unspatialised, or as a
+    diffuse field at the array (``scene.additive = "diffuse"``)."""
 
     DIRECTIONAL = "directional"
     ADDITIVE = "additive"

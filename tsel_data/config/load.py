@@ -16,7 +16,7 @@ from typing import Any
 from ..errors import ConfigError
 from ..scene.distributions import Dist
 from .rules import Where, at, check_raw_config, validate_config
-from .schema import SECTIONS, TOP_FIELDS, TOP_KEYS, Config, SplitConfig
+from .schema import HARDWARE_PROFILES, SECTIONS, TOP_FIELDS, TOP_KEYS, Config, SplitConfig
 
 BUILTIN_PREFIX = "builtin:"  # corpus.dir / room.bank values the run builds itself
 
@@ -121,7 +121,8 @@ def parse_config(raw: dict, where: str = "config", validate: bool = True, stored
         if key in raw:
             kw[key] = _parse_value(raw[key], top[key], Config(), where, key)
     for sec, cls in SECTIONS.items():
-        kw[sec] = _parse_section(raw.get(sec, {}), cls, where, sec, stored)
+        kw[sec] = _parse_section(_with_profile(raw.get(sec, {})) if sec == "hardware" else raw.get(sec, {}), cls,
+                                 where, sec, stored)
     splits = {}
     for name, sraw in (raw.get("splits") or {}).items():
         if not isinstance(sraw, dict):
@@ -137,6 +138,15 @@ def parse_config(raw: dict, where: str = "config", validate: bool = True, stored
 
 
 # --- helpers -----------------------------------------------------------------------------
+
+
+def _with_profile(hardware):
+    """``[hardware]`` with its profile's values (schema.HARDWARE_PROFILES) under every key it
+    leaves unset, so the parsed config, and the config a dataset stores, hold what is drawn."""
+    profile = hardware.get("profile") if isinstance(hardware, dict) else None
+    if not isinstance(profile, str) or profile not in HARDWARE_PROFILES:
+        return hardware  # the schema says what is wrong with a profile of another type
+    return {**HARDWARE_PROFILES[hardware["profile"]], **hardware}
 
 
 def _split_names(layers) -> list[str]:

@@ -23,6 +23,7 @@ from ..choices import LevelModel, NoiseKind, Pairing, QueryType, RecordedSet, Re
 from ..errors import ConfigError, GeometryError
 from ..receivers import RECEIVERS, canonical, receiver
 from ..scene.distributions import Dist
+from ..scene.hardware import read_response
 from ..scene.queries import RELATIONS
 from .receiver import array_poses, receiver_problems
 from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
@@ -229,6 +230,7 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
     out += _query_problems(cfg, where)
     out += _noise_problems(cfg, where)
     out += _recorded_problems(cfg, where)
+    out += _hardware_problems(cfg, where)
     receiver_errors = receiver_problems(cfg, at(where, "array.capsules", "array.patterns", "array.orientations",
                                                 "array.hrtf", "scene.receivers", "scene.format"))
     out += receiver_errors
@@ -304,6 +306,53 @@ def _recorded_problems(cfg: Config, where: str) -> list[ConfigError]:
         out.append(ConfigError(f"{at(where, 'recorded.ontology')}: recorded.dataset = \"custom\" needs your "
                                f"classes: recorded.ontology = FILE (docs/recorded.md)"))
     return out
+
+
+def _hardware_problems(cfg: Config, where: str) -> list[ConfigError]:
+    """[hardware] with the receivers: capsules to put it on (not a format such as FOA), a
+    device per capsule, a response file that reads."""
+    hw = cfg.hardware
+    if not hw.on and not hw.devices:
+        return []
+    if cfg.recorded.on:
+        return [ConfigError(f"{at(where, 'hardware.profile', 'recorded.dataset')}: recorded scenes were made with real "
+                            f"microphones; [hardware] does not apply to them: leave it unset")]
+    names = [n for n in (cfg.scene.format, *cfg.scene.receivers) if canonical(n) is not None]
+    out = []
+    for name in names:
+        spec = receiver(name)
+        if spec.coincident:
+            base = f" (mixed from {spec.base})" if spec.base else ""
+            out.append(ConfigError(f"{at(where, 'hardware.profile', 'scene.format', 'scene.receivers')}: [hardware] "
+                                   f"cannot go on {spec.name}{base}: it is a format, not a microphone, its channels "
+                                   f"encoded from capsules; put it on the capsules (scene.format = \"tetra\" or "
+                                   f"\"em32\") or leave [hardware] unset"))
+            return out
+    if hw.devices:
+        devs = hw.devices
+        if not all(isinstance(d, int) and not isinstance(d, bool) and 0 <= d < MAX_CHANNELS_DEVICES for d in devs) \
+                or 0 not in devs:
+            out.append(ConfigError(f"{at(where, 'hardware.devices')}: hardware.devices gives each capsule's device as a "
+                                   f"whole number from 0 (the first device, whose clock the others are timed "
+                                   f"against), e.g. [0, 0, 1, 1]; got {list(devs)!r}"))
+        else:
+            for name in names:
+                if receiver(name).configured and not cfg.array.capsules:
+                    continue  # receiver_problems names a custom array without capsules
+                n = array_poses(cfg)[names.index(name)].n_channels
+                if n != len(devs):
+                    out.append(ConfigError(f"{at(where, 'hardware.devices', 'scene.format')}: hardware.devices names "
+                                           f"{len(devs)} capsules but {name} has {n}; give one device per capsule"))
+                    break
+    if hw.response:
+        try:
+            read_response(hw.response)
+        except ConfigError as e:
+            out.append(ConfigError(f"{at(where, 'hardware.response')}: {e}"))
+    return out
+
+
+MAX_CHANNELS_DEVICES = 64  # a device index is below the most capsules a receiver has
 
 
 def _noise_problems(cfg: Config, where: str) -> list[ConfigError]:

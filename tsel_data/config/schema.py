@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 
 from ..choices import (Additive, AudioCoding, BadClipPolicy, Baffle, CheckLevel, CorpusFormat, Fingerprint,
-                       HrtfInterpolation, LevelModel, Motion, NoiseSpectrum, Pairing, PathKind, QueryType,
+                       HardwareProfile, HrtfInterpolation, LevelModel, Motion, NoiseSpectrum, Pairing, PathKind, QueryType,
                        RecordedSet, Relation, RirMethod, Scenario, SegmentRule, SensorLevel, SimilarityMeasure, values)
 from ..core.jsonable import jsonable
 from ..receivers import NAMES as RECEIVER_NAMES
@@ -195,8 +195,10 @@ class SceneConfig:
                             "first frame, so `starts_first` / `starts_last` queries need this, e.g. "
                             "`[\"uniform\", 0.0, 3.0]`", unit="s", ge=0.0, new=True)
     same_kind_distractors: float = option(0.0, "probability that an interferer is a different clip of the target's "
-                                               "kind (caption similarity at least `same_kind_similarity`); such "
-                                               "scenes get a composite or relational query, never a bare caption",
+                                               "kind (caption similarity at least `same_kind_similarity`, naming "
+                                               "every sound event the query caption names and none the target does "
+                                               "not: docs/queries.md); such scenes get a composite or relational "
+                                               "query, never a bare caption",
                                           unit="probability", ge=0.0, le=1.0, new=True)
     same_kind_similarity: float = option(0.6, "a same-kind distractor's captions are at least this similar to the "
                                               "query caption", unit="similarity 0-1", gt=0.0, le=1.0, new=True)
@@ -273,7 +275,8 @@ class ArrayConfig:
                            "KEMAR set; the head's yaw is `yaw`", path=True, new=True)
     hrtf_interpolation: str = option("nearest", "binaural: each image source through the `nearest` measured HRIR, "
                                                 "or `interpolated` (the measured triangle around its direction, "
-                                                "barycentric weights)", choices=HrtfInterpolation, new=True)
+                                                "barycentric weights, blended time-aligned: onsets removed, "
+                                                "blended, the interpolated ITD put back)", choices=HrtfInterpolation, new=True)
 
 
 @dataclass(frozen=True)
@@ -321,6 +324,72 @@ class NoiseConfig:
     sensor_level: Dist = dist(["uniform", -90.0, -70.0], "sensor noise: dBFS (`sensor = \"dbfs\"`) or SNR in dB "
                                                         "(`sensor = \"snr\"`)", unit="dBFS or dB", ge=-200.0,
                               le=100.0, new=True)
+
+
+@dataclass(frozen=True)
+class HardwareConfig:
+    """The microphones as they are built: each capsule's gain, delay, frequency response and
+    self-noise off nominal, and each device's clock, drawn per scene and capsule from these
+    distributions and applied to the rendered audio of every receiver (each its own draw),
+    after the room and before output coding: labels stay the geometric truth. Off by
+    default; `profile` fills every key left unset with a typical MEMS board's or a
+    measurement-grade array's values (docs/config.md). What was drawn is in the record and
+    the shard (docs/format.md). FOA and the stereo pair mixed from it are formats, not
+    microphones: refused (put the hardware on `tetra` or `em32`, the capsules FOA is
+    encoded from)."""
+
+    profile: str = option("none", "typical values for every key below left unset: `mems` (a MEMS board), "
+                                  "`measurement` (a measurement-grade array) or `none`", choices=HardwareProfile,
+                          new=True)
+    gain_db: Dist = dist(0.0, "each capsule's gain off nominal (its sensitivity's tolerance), per capsule",
+                         unit="dB", ge=-20.0, le=20.0, new=True)
+    delay_us: Dist = dist(0.0, "each capsule's delay off nominal (its phase mismatch as a delay), per capsule",
+                          unit="µs", ge=-1000.0, le=1000.0, new=True)
+    highpass_hz: Dist = dist(0.0, "each capsule's high-pass corner (-3 dB; a Butterworth of `highpass_order`, its "
+                                  "phase included), per capsule; 0: none", unit="Hz", ge=0.0, le=2000.0, new=True)
+    highpass_order: int = option(2, "the high-pass's order (6 dB per octave each)", ge=1, le=4, new=True)
+    tilt_db: Dist = dist(0.0, "each capsule's spectral tilt about 1 kHz (magnitude only, flat below 50 Hz), per "
+                              "capsule", unit="dB/octave", ge=-6.0, le=6.0, new=True)
+    response: str = option("", "a measured frequency response, a CSV of `frequency_hz` and one gain column (dB; "
+                               "every capsule) or one per capsule, magnitude only, on top of the rest; read when "
+                               "planning, so recipes hold it", path=True, new=True)
+    self_noise_dba: Dist = dist(0.0, "each capsule's self-noise (white), A-weighted, as the datasheet gives it; 0: "
+                                     "none", unit="dB SPL(A)", ge=0.0, le=120.0, new=True)
+    sensitivity_dbfs: float = option(-26.0, "the level a 94 dB SPL (1 Pa) tone reaches in the audio: turns "
+                                            "`self_noise_dba` into full scale (a digital MEMS capsule: -26 dBFS)",
+                                     unit="dBFS at 94 dB SPL", ge=-80.0, le=0.0, new=True)
+    devices: tuple = option((), "the device each capsule belongs to, e.g. `[0, 0, 1, 1]` for two stereo pairs: "
+                                "every device after the first gets its own clock (`clock_offset_us`, "
+                                "`clock_ppm`); empty: one device", new=True)
+    clock_offset_us: Dist = dist(0.0, "how far a device's channels lag the first device's at the start, per device",
+                                 unit="µs", ge=-1e6, le=1e6, new=True)
+    clock_ppm: Dist = dist(0.0, "how much slower a device's clock runs than the first device's: its lag grows by "
+                                "this many µs per second, per device", unit="ppm", ge=-1000.0, le=1000.0, new=True)
+
+    @property
+    def on(self) -> bool:
+        """Whether any capsule or clock differs from the ideal (the layer runs)."""
+        ideal = type(self)()
+        return any(getattr(self, k) != getattr(ideal, k) for k in HARDWARE_DRAWN) or bool(self.response)
+
+
+# what turns the hardware layer on (the rest says how what is drawn is applied)
+HARDWARE_DRAWN = ("gain_db", "delay_us", "highpass_hz", "tilt_db", "self_noise_dba", "clock_offset_us", "clock_ppm")
+
+# hardware.profile: the raw values it gives every [hardware] key a config leaves unset
+HARDWARE_PROFILES = {
+    # digital MEMS capsules on one board, one clock (datasheets of Knowles SPH0645 /
+    # Infineon IM69D class parts; boards roll off below 100-200 Hz)
+    "mems": {"gain_db": ["uniform", -1.0, 1.0], "delay_us": ["uniform", -5.0, 5.0],
+             "highpass_hz": ["uniform", 80.0, 200.0], "tilt_db": ["uniform", -0.5, 0.5],
+             "self_noise_dba": ["uniform", 29.0, 33.0], "sensitivity_dbfs": -26.0,
+             "clock_offset_us": ["uniform", -100.0, 100.0], "clock_ppm": ["uniform", -20.0, 20.0]},
+    # matched measurement capsules on one interface, word clock shared between devices
+    "measurement": {"gain_db": ["uniform", -0.2, 0.2], "delay_us": ["uniform", -0.5, 0.5],
+                    "highpass_hz": ["uniform", 5.0, 10.0], "tilt_db": ["uniform", -0.05, 0.05],
+                    "self_noise_dba": ["uniform", 15.0, 20.0], "sensitivity_dbfs": -32.0,
+                    "clock_offset_us": ["uniform", -2.0, 2.0], "clock_ppm": ["uniform", -0.5, 0.5]},
+}
 
 
 @dataclass(frozen=True)
@@ -386,6 +455,7 @@ class Config:
     sources: SourcesConfig = field(default_factory=SourcesConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     recorded: RecordedConfig = field(default_factory=RecordedConfig)
+    hardware: HardwareConfig = field(default_factory=HardwareConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
     def to_dict(self, every_key: bool = False) -> dict:
@@ -394,7 +464,9 @@ class Config:
         d = jsonable(self)
         if not every_key:
             for name, sec in ((sec, getattr(self, sec)) for sec in SECTIONS):
-                _drop_unset(sec, d[name])
+                # keys a hardware profile fills are kept even at their default: read back,
+                # the config must not take the profile's value for a key it set to the default
+                _drop_unset(sec, d[name], keep=HARDWARE_PROFILES.get(getattr(sec, "profile", None), ()))
                 if name in NEW_SECTIONS and not d[name]:
                     del d[name]  # a section added later, left unset: datasets made without it keep their bytes
             for name, sp in self.splits.items():
@@ -413,16 +485,17 @@ class Config:
 SECTIONS = {
     "corpus": CorpusConfig, "audio": AudioConfig, "scene": SceneConfig, "room": RoomConfig,
     "array": ArrayConfig, "sources": SourcesConfig, "noise": NoiseConfig, "recorded": RecordedConfig,
-    "output": OutputConfig,
+    "hardware": HardwareConfig, "output": OutputConfig,
 }
-NEW_SECTIONS = {"noise", "recorded"}
+NEW_SECTIONS = {"noise", "recorded", "hardware"}
 TOP_KEYS = ("name", "seed", "on_bad_clip", "splits", *SECTIONS)
 TOP_FIELDS = ("name", "seed", "on_bad_clip")
 
 
-def _drop_unset(section, d: dict) -> None:
-    """Remove from ``d`` (a section as plain data) the ``new`` keys left at their default."""
+def _drop_unset(section, d: dict, keep=()) -> None:
+    """Remove from ``d`` (a section as plain data) the ``new`` keys left at their default
+    (but those in ``keep``)."""
     default = type(section)()
     for f in fields(section):
-        if f.metadata.get("new") and getattr(section, f.name) == getattr(default, f.name):
+        if f.metadata.get("new") and f.name not in keep and getattr(section, f.name) == getattr(default, f.name):
             d.pop(f.name, None)

@@ -20,11 +20,12 @@ from ..config import Config, rooms_without_bank
 from ..config.receiver import array_pose, hrtf_problem
 from ..core.progress import bar
 from ..corpus.ambience import find_ambience
-from ..corpus.captions import CaptionIndex, caption_sets, load_embeddings, max_similarity
+from ..corpus.captions import CaptionIndex, caption_sets, load_embeddings, max_similarity, same_kind, sound_events
 from ..corpus.clip import Clip
 from ..errors import TselError
 from ..receivers import receiver
 from ..runtime.pool import ordered_pool
+from ..render.hardware import draw_hardware
 from ..render.noise import draw_noise
 from ..scene.queries import margins as relation_margins
 from ..scene.recipe import BUILTIN_DEMO_BANK, BankRef, QueryPlan, Roots, SceneRecipe, Source, plan_roots
@@ -68,6 +69,13 @@ class CatalogView:
             self._indexes[key] = [tuple(caption_sets(c, measure) for c in clip.captions) for clip in self.clips]
         return self._indexes[key]
 
+    def sound_events(self) -> list[frozenset]:
+        """Each clip's sound events, its captions together (corpus.captions.sound_events), made once."""
+        key = ("events",)
+        if key not in self._indexes:
+            self._indexes[key] = [sound_events(c.captions) for c in self.clips]
+        return self._indexes[key]
+
     @property
     def source_ids(self) -> np.ndarray:
         """Each clip's sound source as an integer (clips of one recording share it)."""
@@ -100,6 +108,8 @@ def prepare_views(cfg: Config, home: Layout, workers: int = 1,
         for split in cfg.active_splits():
             if split in views:
                 views[split].caption_index(cfg.scene.similarity, cfg.corpus.caption_embeddings)
+                if same_kind_possible(cfg):
+                    views[split].sound_events()
     return catalog, views
 
 
@@ -142,8 +152,9 @@ def scene_rng(seed: int, split: str, index: int, stream: int = 0) -> np.random.G
     """The generator of every draw of scene ``index`` of ``split``.
 
     Streams 1 (query decisions: the query type, same-kind draws, the relation order and
-    wording) and 2 (each source's start, ``scene.onset``) are independent generators of
-    the same scene, so they never shift the draws of stream 0 (clips, levels, room,
+    wording), 2 (each source's start, ``scene.onset``), 3 (``[noise]``), 4 (source powers)
+    and 5 (``[hardware]``: each receiver's capsules and clocks) are independent generators
+    of the same scene, so they never shift the draws of stream 0 (clips, levels, room,
     placement) that earlier releases made.
     """
     key = [seed, zlib.crc32(split.encode("utf-8")), index]
@@ -157,6 +168,11 @@ def extended_queries(cfg: Config) -> bool:
     sc = cfg.scene
     return (set(sc.query.options) != {QueryType.CAPTION} or sc.pairing != Pairing.RANDOM
             or sc.same_kind_distractors > 0 or sc.similarity not in SET_MEASURES)
+
+
+def same_kind_possible(cfg: Config) -> bool:
+    """Whether scenes may draw same-kind distractors (composite queries, or a probability of them)."""
+    return cfg.scene.same_kind_distractors > 0 or QueryType.COMPOSITE in cfg.scene.query.options
 
 
 SET_MEASURES = (SimilarityMeasure.LEXICON, SimilarityMeasure.WORDS, SimilarityMeasure.NONE)
@@ -210,7 +226,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     if extended_queries(cfg):
         pairs = _QueryDraws(cfg, split, index, cat, t, q)
         for k in range(n_int):
-            chosen.append(pairs.pick(rng, chosen, same_kind=pairs.wants_same_kind(k, n_int)))
+            chosen.append(pairs.pick(rng, chosen, kind=pairs.wants_same_kind(k, n_int)))
     else:
         for _ in range(n_int):
             chosen.append(_pick_interferer(rng, cat, chosen, (t, q), sc, split, index))
@@ -248,6 +264,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
         target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db, bank=bank,
         query_plan=None if pairs is None else pairs.plan(chosen),
         noise=_noise_items(cfg, split, index, cat, chosen, bank.room if bank else None),
+        hardware=draw_hardware(cfg, scene_rng(cfg.seed, split, index, 5), array),
         descriptors=cfg.output.descriptors,
     )
     return recipe.validate(wall_margin=cfg.sources.wall_margin - 1e-6)
@@ -288,7 +305,7 @@ class _QueryDraws:
         self.qrng = scene_rng(cfg.seed, split, index, stream=1)
         self.wanted = str(self.sc.query.sample(self.qrng))
         self.ix = cat.caption_index(self.sc.similarity, cfg.corpus.caption_embeddings)
-        self.t, self.cap = t, self.ix.caption_id(t, q)
+        self.t, self.q, self.cap = t, q, self.ix.caption_id(t, q)
         self.pairings: list = [None]
 
     def wants_same_kind(self, k: int, n_int: int) -> bool:
@@ -299,7 +316,7 @@ class _QueryDraws:
         drawn = bool(self.qrng.random() < p) if p > 0 else False
         return drawn or (self.wanted == QueryType.COMPOSITE and k == n_int - 1)
 
-    def pick(self, rng, chosen: list[int], same_kind: bool) -> int:
+    def pick(self, rng, chosen: list[int], kind: bool) -> int:
         sc, ix, cat = self.sc, self.ix, self.cat
         taken = cat.source_ids[chosen]
 
@@ -307,8 +324,17 @@ class _QueryDraws:
             # a clip of a recording already in the scene (the chosen clips among them) is not another source
             return (cat.source_ids[clips][:, None] != taken[None, :]).all(axis=1)
 
-        if same_kind:
-            j = ix.sample(rng, self.cap, sc.same_kind_similarity, np.inf, allowed)
+        if kind:
+            # of the target's kind: the band of similarity to the query caption, and the
+            # sound events the caption names, no more than the target's (corpus.captions.same_kind)
+            events = cat.sound_events()
+            query, target = sound_events(cat.clips[self.t].captions[self.q]), events[self.t]
+
+            def of_kind(clips):
+                ok = allowed(clips)
+                return ok & np.array([same_kind(query, target, events[j]) for j in clips], dtype=bool)
+
+            j = ix.sample(rng, self.cap, sc.same_kind_similarity, np.inf, of_kind)
             if j is not None:
                 self.pairings.append("same-kind")
                 return j

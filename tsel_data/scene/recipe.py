@@ -23,6 +23,7 @@ from ..core.geometry import Room, interpolate_positions, room_to_array
 from ..core.jsonable import JsonFields, key, rows, unset
 from ..errors import DatasetError, GeometryError
 from ..receivers import RECEIVERS, ArrayPose
+from .hardware import Hardware
 from .recorded import KIND as RECORDED, RecordedRecipe
 
 SCENARIOS = values(Scenario)
@@ -207,7 +208,9 @@ class SceneRecipe:
     query; with a ``query_plan`` the renderer decides the scene's query from it and the
     rendered truth (a relation, or this caption). receivers: further receivers heard in
     the same pass, at the array's centre and yaw (``scene.receivers``). noise: what else
-    it hears, unlabelled (:class:`NoiseItem`, ``[noise]``). descriptors: the record gets
+    it hears, unlabelled (:class:`NoiseItem`, ``[noise]``). hardware: each receiver's
+    microphones as built (``[hardware]``; :class:`~tsel_data.scene.hardware.Hardware`), in
+    the order ``array``, ``receivers``; empty: ideal capsules. descriptors: the record gets
     each source's acoustic descriptors and motion class, and the room's size
     (``output.descriptors``).
     """
@@ -231,6 +234,7 @@ class SceneRecipe:
     query_plan: QueryPlan | None = None
     receivers: tuple[ArrayPose, ...] = ()
     noise: tuple[NoiseItem, ...] = ()
+    hardware: tuple[Hardware, ...] = ()
     descriptors: bool = False
 
     kind = "rendered"  # a plan line's kind (a recorded scene's recipe says "recorded")
@@ -280,6 +284,8 @@ class SceneRecipe:
             d["receivers"] = [a.to_dict() for a in self.receivers]
         if self.noise:
             d["noise"] = [n.to_dict() for n in self.noise]
+        if self.hardware:  # [hardware]: absent otherwise, so recipes without it keep their bytes
+            d["hardware"] = [h.to_dict() for h in self.hardware]
         if self.descriptors:  # absent otherwise: recipes made before it keep their bytes
             d["descriptors"] = True
         return d
@@ -299,6 +305,7 @@ class SceneRecipe:
         d["query_plan"] = None if qp is None else QueryPlan.from_dict(qp)
         d["receivers"] = tuple(ArrayPose.from_dict(a) for a in d.get("receivers") or ())
         d["noise"] = tuple(NoiseItem.from_dict(n) for n in d.get("noise") or ())
+        d["hardware"] = tuple(Hardware.from_dict(h) for h in d.get("hardware") or ())
         return cls(**d)
 
     @classmethod

@@ -33,6 +33,7 @@ TOOL = "tsel-data"  # the "tool" of every JSON document that marks a folder as o
 NOISE_GROUP = "noise"  # HDF5 group of a shard's unlabelled noise: noise/KIND/{snr_db, level_dbfs}
 DESCRIPTORS_GROUP = "descriptors"  # HDF5 group of the sources' acoustic descriptors (output.descriptors)
 RECEIVERS_GROUP = "receivers"  # HDF5 group of a shard's further receivers: receivers/NAME/{audio, mic_positions}
+HARDWARE_GROUP = "hardware"  # HDF5 group of the microphones as built ([hardware]): hardware/{gain_db, ...}
 
 
 def shard_names(split: str, shard: int) -> tuple[str, str]:
