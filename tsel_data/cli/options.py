@@ -14,7 +14,7 @@ def config_options(f):
     """--preset, --config, --corpus-dir, --split, --seed, --bank, --set."""
     opts = [
         click.option("--preset", help="A built-in preset (see `tsel presets`)."),
-        click.option("--config", "config_path", type=click.Path(dir_okay=False), help="A TOML config file."),
+        click.option("--config", "config_path", type=click.Path(), help="A TOML config file."),
         click.option("--corpus-dir", type=click.Path(file_okay=False), help="Folder with the manifests and audio."),
         click.option("--split", "splits", multiple=True, metavar="NAME=COUNT", help="Scenes in a split (repeatable)."),
         click.option("--seed", type=int, help="Dataset seed."),

@@ -13,6 +13,7 @@ from dataclasses import fields
 from importlib import resources
 from typing import Any
 
+from ..core.files import check_input
 from ..errors import ConfigError
 from ..scene.distributions import Dist
 from .rules import Where, at, check_raw_config, validate_config
@@ -149,6 +150,7 @@ def _split_names(layers) -> list[str]:
 
 
 def _read_user_file(path: str) -> dict:
+    check_input(path, ConfigError, "give the TOML config file itself")
     if not os.path.isfile(path):
         raise ConfigError(f"config file not found: {path}")
     try:

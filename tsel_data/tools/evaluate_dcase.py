@@ -10,6 +10,7 @@ import os
 
 import numpy as np
 
+from ..core.files import check_input
 from ..errors import DatasetError, PredictionError
 from ..formats.dcase import FRAME_HOP, dcase_rows
 from ..store.reader import open_dataset
@@ -19,8 +20,10 @@ def read_dcase_predictions(pred_dir: str) -> dict[str, list]:
     """{scene_id: rows} from a folder of DCASE output CSVs, one per scene, named as the
     DCASE export names them (``fold{n}_{scene_id}.csv``, or ``{scene_id}.csv``); rows
     ``frame,class,source,azimuth,elevation[,distance_cm]`` (no header)."""
+    fix = "give the folder of DCASE prediction CSVs (one per scene)"
+    check_input(pred_dir, PredictionError, fix, folder=True)
     if not os.path.isdir(pred_dir):
-        raise PredictionError(f"{pred_dir}: not a folder; give the folder of DCASE prediction CSVs (one per scene)")
+        raise PredictionError(f"{pred_dir}: not a folder; {fix}")
     out: dict[str, list] = {}
     for name in sorted(os.listdir(pred_dir)):
         if not name.endswith(".csv"):
@@ -28,6 +31,7 @@ def read_dcase_predictions(pred_dir: str) -> dict[str, list]:
         stem = name[:-4]
         sid = stem.split("_", 1)[1] if stem.startswith("fold") and "_" in stem else stem
         path = os.path.join(pred_dir, name)
+        check_input(path, PredictionError, "a prediction is a CSV file")  # a FIFO would block, /dev/zero never end
         rows = []
         with open(path, encoding="utf-8", errors="replace") as f:
             for n, line in enumerate(f, 1):

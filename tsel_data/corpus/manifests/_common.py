@@ -18,6 +18,7 @@ import re
 import string
 from typing import Iterator, Sequence
 
+from ...core.files import path_problem
 from ...errors import ManifestError
 
 AUDIO_EXTENSIONS = (".wav", ".flac", ".mp3", ".ogg", ".opus", ".m4a", ".aif", ".aiff")
@@ -49,8 +50,9 @@ def check_file(name: str) -> None:
     if os.path.isdir(name):
         raise fail(name, "is a directory, not a manifest file",
                    "pass the CSV/JSON/JSONL file itself")
-    if not os.path.isfile(name):  # a FIFO or device would block or never end
-        raise fail(name, "is not a regular file (a pipe, device or socket)", "pass the manifest file itself")
+    problem = path_problem(name)  # a FIFO or device would block or never end
+    if problem:
+        raise fail(name, problem, "pass the manifest file itself")
 
 
 def read_text(name: str) -> str:
