@@ -73,6 +73,21 @@ def check_input(path, error=None, fix: str = "", folder: bool = False) -> None:
         raise (error or TselError)(f"{path} {why}" + (f"; {fix}" if fix else ""))
 
 
+def replace_problem(path) -> str | None:
+    """Why nothing may be written over ``path``, not even with ``--force``, or None: it is
+    a device, a FIFO, a socket or a folder (a rename would put a file in place of
+    ``/dev/null``). A regular file, a symbolic link (the link is replaced, never what it
+    points to) and nothing at all may be replaced, by the rules of who owns them."""
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISREG(mode) or stat.S_ISLNK(mode):
+        return None
+    what = "a folder" if stat.S_ISDIR(mode) else special_kind(mode)
+    return f"is {what}, not a file: nothing is written in its place, not even with --force; choose another name"
+
+
 def is_regular(path) -> bool:
     """Whether ``path`` is (or links to) a regular file: what may be opened for reading."""
     try:
