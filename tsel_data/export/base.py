@@ -26,6 +26,7 @@ is here.
 from __future__ import annotations
 
 import json
+import math
 import os
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
@@ -53,7 +54,9 @@ MANIFEST_VERSION = 2  # 2: stamps of the files (version 1 manifests own their fi
 class WriterOption:
     """One option of a writer, declared once: the command line (``--name-with-dashes``)
     and the Python keyword (``name``) both follow. ``parse`` turns the command line's
-    text into the value (a TselError for a bad one); ``flag``: a boolean switch."""
+    text into the value (a TselError for a bad one); ``flag``: a boolean switch; ``bound``:
+    the setting of the config schema whose bounds the command line holds it to
+    (``config.schema.CommandOptions``)."""
 
     name: str
     help: str
@@ -61,6 +64,7 @@ class WriterOption:
     choices: tuple = ()
     parse: Callable | None = None
     flag: bool = False
+    bound: str = ""
 
 
 def parse_size(text) -> int:
@@ -74,7 +78,7 @@ def parse_size(text) -> int:
             value = float(s[:-1] if s[-1:] in "KMGT" else s) * scale
         except ValueError:
             value = -1.0
-    if value < 1:
+    if not math.isfinite(value) or value < 1:
         raise TselError(f"size {text!r}: expected bytes or a number with KB, MB or GB, e.g. 500MB")
     return int(value)
 

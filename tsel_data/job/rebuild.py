@@ -143,7 +143,7 @@ def required_scenes(spec: int | str, total: int) -> int:
     text = str(spec).strip()
     try:
         n = math.ceil(float(text[:-1]) * total / 100 - 1e-9) if text.endswith("%") else int(text)
-    except ValueError:
+    except (ValueError, OverflowError):  # not a number, nan%, inf%
         n = -1
     if n < 0 or (text.endswith("%") and float(text[:-1]) > 100):
         raise TselError(f"--min-scenes {spec}: give a count of scenes (e.g. 30) or a share of the release's "
