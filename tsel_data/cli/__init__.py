@@ -19,6 +19,7 @@ from click.exceptions import NoArgsIsHelpError
 
 from ..errors import TselError, WriteError, tidy_message
 from ..runtime.signals import Stopped, stop_requested, stop_signals
+from ..runtime.streams import guarded_output, output_note
 
 # command name -> (module in this package, the click command in it)
 COMMANDS = {
@@ -58,7 +59,17 @@ def cli():
 
 
 def main(argv=None) -> None:
-    # every command stops the same way on SIGINT, SIGTERM and SIGHUP (runtime/signals.py)
+    # every command stops the same way on SIGINT, SIGTERM and SIGHUP (runtime/signals.py);
+    # a stdout or stderr that goes away (`| head`, a full log disk) never stops the work
+    # nor reads as the dataset's failure (runtime/streams.py)
+    with guarded_output() as (out, err):
+        try:
+            _main(argv)
+        finally:
+            output_note(out, err)
+
+
+def _main(argv) -> None:
     with stop_signals():
         try:
             rc = _run(argv)
