@@ -30,6 +30,7 @@ import re
 import numpy as np
 
 from ..errors import ConfigError
+from ..core.files import check_input
 from .lexicon import concepts, weight
 
 _WORD = re.compile(r"[a-z0-9']+")
@@ -118,6 +119,7 @@ def answerable_queries(target_captions, other_captions, max_sim: float) -> list[
 def load_embeddings(path: str) -> dict[str, np.ndarray]:
     """caption -> unit vector from an ``.npz`` with ``captions`` [N] str and ``vectors``
     [N, D] (ConfigError naming the file on any problem)."""
+    check_input(path, ConfigError, "give the .npz of `tsel corpus embed`")
     try:
         with np.load(path, allow_pickle=False) as z:
             caps, vecs = z["captions"], z["vectors"]

@@ -18,6 +18,7 @@ import h5py
 import numpy as np
 
 from ..core.digest import sha256_file
+from ..core.files import path_problem
 from ..core.h5str import as_str, as_strs
 from ..core.report import CheckReport
 from ..errors import DatasetError, TselError
@@ -173,7 +174,10 @@ def _check_shard(job) -> list[str]:
     fix = f"delete it and rerun `tsel render {out_dir}` and `tsel finalize {out_dir}`"
     problems = []
     for rel, path, digest in ((entry.file, h5_path, entry.sha256), (entry.json, js_path, entry.json_sha256)):
-        if not os.path.isfile(path):
+        special = path_problem(path)
+        if special and special != "does not exist":  # a FIFO would keep the hash waiting
+            problems.append(f"{rel} {special}; {fix}")
+        elif not os.path.isfile(path):
             problems.append(f"{rel}: listed in dataset.json but missing; rerun `tsel render {out_dir}` and "
                             f"`tsel finalize {out_dir}`")
         elif digest and sha256_file(path) != digest:

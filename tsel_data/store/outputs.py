@@ -23,7 +23,7 @@ from contextlib import contextmanager
 
 from ..banks.tau import is_tau_folder
 from ..core.atomic import write_json
-from ..core.files import replace_problem
+from ..core.files import is_regular, replace_problem
 from ..errors import DatasetError, TselError, broken_link
 from .layout import EXPORT_MANIFEST_FILE, Layout
 
@@ -130,6 +130,8 @@ def _registry(folder: str) -> dict | None:
     path = os.path.join(folder, REGISTRY_FILE)
     if not os.path.lexists(path):
         return {}
+    if not is_regular(path):
+        return None  # a FIFO would keep the read waiting; not ours either way
     try:
         with open(path, encoding="utf-8") as f:
             doc = json.load(f)

@@ -176,6 +176,8 @@ def parse_prediction(obj, where: str = "prediction") -> Prediction:
                               f"or null")
     try:
         val = np.asarray(value, dtype=np.float64)
+    except OverflowError:  # an integer of 400 digits: JSON allows it, a float does not hold it
+        raise PredictionError(f"{where}: a number too large for a float; azimuths are degrees") from None
     except (TypeError, ValueError):
         raise PredictionError(f"{where}: values must be numbers (or lists of numbers), each list the same "
                               f"length") from None
