@@ -15,11 +15,10 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from dataclasses import fields
 
 from ..acoustics.metrics import sabine_min_rt60
-from ..choices import (LevelModel, NoiseKind, Pairing, QueryType, RecordedSet, Relation, SensorLevel,
+from ..choices import (SPLIT_NAME, LevelModel, NoiseKind, Pairing, QueryType, RecordedSet, Relation, SensorLevel,
                        SimilarityMeasure, values)
 from ..errors import ConfigError, GeometryError
 from ..receivers import RECEIVERS, canonical, receiver
@@ -32,7 +31,6 @@ MAX_NUMBER = 1e9  # larger config numbers are typos (seeds excepted)
 MAX_DEPTH = 16  # tables and lists nest no deeper in a config (array.capsules: 3 levels under the root)
 MAX_NOISE_OVER_TARGET_DB = 20.0  # every noise's SNR is at least -20 dB (schema: noise.*_snr)
 RELATION_NAMES = values(Relation)
-SPLIT_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 
 
 class Where(str):

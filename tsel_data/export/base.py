@@ -212,8 +212,13 @@ class ExportJob:
     # --- writing ----------------------------------------------------------------------
     def path(self, rel: str) -> str:
         """The full path of ``rel``, claimed for this export: a DatasetError when a file
-        is there that no export of this kind wrote (unless ``force``)."""
-        full = os.path.join(self.out, rel)
+        is there that no export of this kind wrote (unless ``force``), or when ``rel``
+        would leave the folder (a name made from a document: a split of dataset.json)."""
+        try:
+            full = inside(self.out, rel)
+        except ValueError as e:
+            raise DatasetError(f"{self.root}: the export would write {rel!r}, which {e}; an export writes only inside "
+                               f"--out: is dataset.json edited?") from None
         if rel not in self._claimed:
             self.check_free(rel)
             self._journal_line(rel)

@@ -10,6 +10,7 @@ import json
 import os
 from dataclasses import dataclass, field, replace
 
+from ..choices import SPLIT_NAME
 from ..core.files import check_input, name_problem
 from ..core.version import __version__
 from ..errors import DatasetError
@@ -169,6 +170,9 @@ def load_dataset_doc(root: str) -> DatasetDoc:
     try:
         splits, counts = {}, {}
         for name, s in doc["splits"].items():
+            if not SPLIT_NAME.fullmatch(name):  # a split names folders of the dataset and of its exports
+                raise DatasetError(f"{path}: split {name!r} is not a plain name (letters, digits, _ or -); the file "
+                                   f"was edited: rerun `tsel finalize {root}`")
             shards = s.get("shards") or []
             for k, e in enumerate(shards):
                 where = f"splits.{name}.shards[{k}]"

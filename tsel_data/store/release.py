@@ -31,7 +31,7 @@ from ..core.report import CheckReport
 from ..core.version import __version__
 from ..errors import DatasetError
 from ..scene.recipe import recipe_from_line
-from ..config.rules import SPLIT_NAME
+from ..choices import SPLIT_NAME
 from .layout import CONFIG_FILE, DATASET_FILE, PLAN_DIR, Layout
 from .plans import read_plan_doc, read_plan_lines, seal_problem
 from .reader import list_splits, open_dataset
