@@ -369,6 +369,11 @@ class OutputConfig:
                                    "-101 dBFS); `flac` (lossless over int16, about a third of float32's bytes); every "
                                    "coding reads back as float32 (docs/format.md)", choices=AudioCoding,
                         new=True)
+    descriptors: bool = option(True, "each source's acoustic descriptors measured on its rendered RIRs (DRR, C50, "
+                                     "EDT, T30 and T30 per octave band), its motion class (stationary, approaching, "
+                                     "receding, passing, circling) and the room's volume and floor area, in the "
+                                     "records and the shards (docs/format.md, \"Acoustic descriptors\"); they add about "
+                                     "9 % to rendering (benchmarks/bench_descriptors.py)", former=False)
 
 
 @dataclass(frozen=True)

@@ -70,13 +70,14 @@ def scene_recipe(events: Sequence[Event], room: Sequence[float] = (6.0, 5.0, 3.0
                  duration: float = 10.0, fs: int = 24000, seed: int = 0, rir_method: str = "hybrid",
                  side: float = 0.1, hrtf: str | None = None, receivers: Sequence[str] = (),
                  label_hop: float = 0.1, target_level_dbfs: float = -25.0, wall_margin: float = 0.2,
-                 scene_id: str = "handmade-000000") -> SceneRecipe:
+                 scene_id: str = "handmade-000000", descriptors: bool = True) -> SceneRecipe:
     """The recipe of one scene: ``events`` (the first is the target) in a shoebox ``room``
     ((length, width, height) m, ``rt60`` s), heard by ``receiver`` (any receiver name,
     ``tsel presets``; ``hrtf``: a binaural receiver's SOFA file; ``side``: mic4's side,
     m) at ``position`` (room frame, m; default the room's middle at 1.5 m, or half its
     height when lower) turned by ``yaw`` degrees, and by ``receivers`` at the same place.
-    ``seed`` draws what the simulator draws (the late tail's noise). Raises a one-line
+    ``seed`` draws what the simulator draws (the late tail's noise); ``descriptors``: the
+    record gets each event's DRR, C50, T30 and motion class. Raises a one-line
     ConfigError or GeometryError for what cannot be built (a clip not there, an event
     outside the room or within ``wall_margin`` m of a wall, a target without caption).
     """
@@ -107,7 +108,8 @@ def scene_recipe(events: Sequence[Event], room: Sequence[float] = (6.0, 5.0, 3.0
                          scenario=Scenario.TWO_DIRECTIONAL,  # every event directional, however many
                          query=sources[0].captions[0], array=poses[0], sources=sources, room=Room(dims, float(rt60)),
                          fs=int(fs), duration=float(duration), label_hop=float(label_hop), rir_method=rir_method,
-                         target_level_dbfs=float(target_level_dbfs), receivers=tuple(poses[1:]))
+                         target_level_dbfs=float(target_level_dbfs), receivers=tuple(poses[1:]),
+                         descriptors=bool(descriptors))
     return recipe.validate(wall_margin)
 
 

@@ -258,6 +258,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
         target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db, bank=bank,
         query_plan=None if pairs is None else pairs.plan(chosen),
         noise=_noise_items(cfg, split, index, cat, chosen, bank.room if bank else None),
+        descriptors=cfg.output.descriptors,
     )
     return recipe.validate(wall_margin=cfg.sources.wall_margin - 1e-6)
 

@@ -14,12 +14,13 @@ the scene: room, array pose, clips, placements, levels.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..acoustics import simulate_rirs
 from ..acoustics.capsules import capsule_model
+from ..acoustics.descriptors import describe_rir
 from ..acoustics.diffuse import diffuse_image
 from ..acoustics.image_paths import GROUPS
 from ..banks.scenes import open_bank_cached
@@ -29,6 +30,7 @@ from ..corpus.ambience import omni_energy
 from ..corpus.audio import active_rms, db, frame_activity, load_clip_cached
 from ..dsp.timevarying import render_moving, render_static
 from ..errors import AudioError, BankError
+from ..scene.motion import motion_class
 from ..scene.queries import Truth, decide
 from ..scene.recipe import BankRef, Roots, SceneRecipe, array_frame_position_at
 from ..store.records import (LABEL_DECIMALS, ArrayRecord, LevelsRecord, NoiseRecord, RoomRecord, SceneRecord,
@@ -78,9 +80,12 @@ def source_labels(recipe: SceneRecipe, k: int) -> tuple[np.ndarray, np.ndarray, 
     return az.astype(np.float32), el.astype(np.float32), dist.astype(np.float32)
 
 
-def spatial_images(recipe: SceneRecipe, dry: np.ndarray, array=None) -> tuple[np.ndarray, float | None]:
+def spatial_images(recipe: SceneRecipe, dry: np.ndarray, array=None, keep: dict | None = None
+                   ) -> tuple[np.ndarray, float | None]:
     """Each source's image at the array, unscaled: float32 [S, C, T]; and the measured RT60.
     ``array``: one of the recipe's receivers (default the first, ``recipe.array``).
+    ``keep``: filled with {source: its RIR [C, L]} of static simulated sources, and
+    {source: [RIR at each knot]} of bank sources (what :func:`source_descriptors` measures).
 
     Static simulated sources share one batched RIR computation and convolution; moving
     and bank sources go through the time-varying renderer (dsp/timevarying.py); additive
@@ -101,6 +106,8 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray, array=None) -> tuple[np
         rs = simulate_rirs(recipe.room, array, pts, fs, method=recipe.rir_method, seed=recipe.seed)
         rt60 = rs.rt60_measured
         convolve([dry[k] for k in static], rs.rirs, n, out=[images[k] for k in static])
+        if keep is not None:
+            keep.update((k, rs.rirs[j]) for j, k in enumerate(static))
     for k, s in enumerate(recipe.sources):
         if s.spatial == Spatial.ADDITIVE:
             _additive(images[k], dry[k], array.spec.additive_gains(array.n_channels))
@@ -115,6 +122,8 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray, array=None) -> tuple[np
             b = s.bank
             # a mixed receiver (stereo from FOA) mixes its base's measured RIRs
             rirs = [array.spec.mixed(r) for r in _bank(recipe).views(b.room, b.trajectory, b.indices)]
+            if keep is not None:
+                keep[k] = rirs
             if len(rirs) == 1:
                 convolve(dry[k:k + 1], rirs[:1], n, out=images[k:k + 1])
             else:
@@ -172,7 +181,8 @@ class MixParts:
     peak: the mix's peak before ``norm``. mix: float32 [C, T], the scene's audio.
     rt60_measured: s, or None. others: the recipe's further receivers (``recipe.receivers``),
     each (images, mix) with the same gains and ``norm`` (levels are set on the first
-    receiver; ``norm`` keeps every receiver's mix below full scale).
+    receiver; ``norm`` keeps every receiver's mix below full scale). descriptors: with
+    ``recipe.descriptors``, each source's (:func:`source_descriptors`), else empty.
     """
 
     active: np.ndarray
@@ -185,6 +195,7 @@ class MixParts:
     rt60_measured: float | None
     others: tuple = ()
     noise: tuple = ()
+    descriptors: tuple = ()
 
     def stems(self, receiver: int = 0) -> np.ndarray:
         """float32 [S, C, T]: each source alone as it sounds in the mix of receiver
@@ -219,7 +230,8 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
                     for s in recipe.sources])
     active = np.stack([frame_activity(x, fs, hop, nf, recipe.activity_threshold_db) for x in dry])
 
-    images, rt60_measured = spatial_images(recipe, dry)
+    rirs = {} if recipe.descriptors else None
+    images, rt60_measured = spatial_images(recipe, dry, keep=rirs)
 
     level_ch = recipe.array.spec.level_slice()  # the "omni energy": W for FOA, every capsule of an array
     levels = np.array([active_rms(images[k, level_ch], active[k], fs, hop) for k in range(len(images))])
@@ -249,7 +261,33 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
     mix *= np.float32(norm)
     for _, m in others:
         m *= np.float32(norm)
-    return MixParts(active, images, gains, norm, levels, peak, mix, rt60_measured, tuple(others), noise)
+    described = source_descriptors(recipe, rirs, active) if recipe.descriptors else ()
+    return MixParts(active, images, gains, norm, levels, peak, mix, rt60_measured, tuple(others), noise, described)
+
+
+def source_descriptors(recipe: SceneRecipe, rirs: dict, active: np.ndarray) -> tuple:
+    """Each source's acoustic descriptors (acoustics/descriptors.py) at the first receiver,
+    from the RIRs it was rendered with (``rirs``, :func:`spatial_images`' ``keep``); None
+    for positionless sources. A moving source is measured where it is in the middle of the
+    frames it sounds in: a bank source at the knot nearest then, a simulated one through a
+    static RIR simulated there (the same room, method and seed)."""
+    out = []
+    level_ch = recipe.array.spec.level_slice()
+    for k, s in enumerate(recipe.sources):
+        if s.spatial != Spatial.DIRECTIONAL:
+            out.append(None)
+            continue
+        heard = np.nonzero(active[k])[0]
+        t = (heard[0] + heard[-1] + 1) / 2 * recipe.label_hop if len(heard) else recipe.duration / 2
+        if s.path:
+            rir = simulate_rirs(recipe.room, recipe.array, s.position_at(t)[None], recipe.fs, method=recipe.rir_method,
+                                seed=recipe.seed + 1 + k).rirs[0]
+        elif s.bank is not None:
+            rir = rirs[k][int(np.argmin(np.abs(np.asarray(s.bank.times) - t)))]
+        else:
+            rir = rirs[k]
+        out.append(describe_rir(rir, recipe.fs, level_ch))
+    return tuple(out)
 
 
 def source_gains(recipe: SceneRecipe, dry: np.ndarray, active: np.ndarray, levels: np.ndarray) -> np.ndarray:
@@ -344,6 +382,9 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
         extra = dict(query_type=str(d.type), query_relation=d.relation, query_evidence=d.evidence,
                      query_alternatives=list(d.alternatives), pairing=qp.pairing, query_wanted=qp.wanted)
     room, centre, yaw = _room_and_pose(files, rt60_measured, recipe.bank)
+    if recipe.descriptors and room.dims:
+        room = replace(room, volume_m3=round(float(np.prod(room.dims)), 3),
+                       floor_area_m2=round(float(room.dims[0] * room.dims[1]), 3))
     record = SceneRecord(
         scene_id=recipe.scene_id, split=recipe.split, index=recipe.index, seed=recipe.seed,
         scenario=recipe.scenario, query=query, motion="moving" if recipe.moving else "static",
@@ -354,7 +395,9 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
                 s, label_list(az[k], LABEL_DECIMALS["azimuth"]), label_list(el[k], LABEL_DECIMALS["elevation"]),
                 label_list(dist[k], LABEL_DECIMALS["distance"]), active[k].tolist(), round(db(gains[k] * norm), 3),
                 round(db(levels[k] * gains[k] * norm), 3),
-                *(() if qp is None else (qp.pairings[k] or "target", qp.similarity[k])))
+                *((None, None) if qp is None else (qp.pairings[k] or "target", qp.similarity[k])),
+                **({} if not recipe.descriptors else
+                   {"acoustics": parts.descriptors[k], "motion": motion_class(az[k], el[k], dist[k], active[k])}))
             for k, s in enumerate(recipe.sources)),
         levels=LevelsRecord(recipe.target_level_dbfs, round(peak * norm, 6), round(db(norm), 3)),
         receivers=tuple(ArrayRecord.of(p, centre, yaw, np.round(p.mics(), 6).tolist()) for p in recipe.receivers),

@@ -208,7 +208,9 @@ class SceneRecipe:
     query; with a ``query_plan`` the renderer decides the scene's query from it and the
     rendered truth (a relation, or this caption). receivers: further receivers heard in
     the same pass, at the array's centre and yaw (``scene.receivers``). noise: what else
-    it hears, unlabelled (:class:`NoiseItem`, ``[noise]``).
+    it hears, unlabelled (:class:`NoiseItem`, ``[noise]``). descriptors: the record gets
+    each source's acoustic descriptors and motion class, and the room's size
+    (``output.descriptors``).
     """
 
     scene_id: str
@@ -230,6 +232,7 @@ class SceneRecipe:
     query_plan: QueryPlan | None = None
     receivers: tuple[ArrayPose, ...] = ()
     noise: tuple[NoiseItem, ...] = ()
+    descriptors: bool = False
 
     kind = "rendered"  # a plan line's kind (a recorded scene's recipe says "recorded")
 
@@ -278,6 +281,8 @@ class SceneRecipe:
             d["receivers"] = [a.to_dict() for a in self.receivers]
         if self.noise:
             d["noise"] = [n.to_dict() for n in self.noise]
+        if self.descriptors:  # absent otherwise: recipes made before it keep their bytes
+            d["descriptors"] = True
         return d
 
     def to_json(self) -> str:

@@ -33,6 +33,7 @@ EXPORT_MANIFEST_FILE = ".tsel-export.json"
 EXPORT_LOCK_FILE = ".tsel-export.lock"  # one export at a time into a folder (store/lock.py)
 TOOL = "tsel-data"  # the "tool" of every JSON document that marks a folder as ours
 NOISE_GROUP = "noise"  # HDF5 group of a shard's unlabelled noise: noise/KIND/{snr_db, level_dbfs}
+DESCRIPTORS_GROUP = "descriptors"  # HDF5 group of the sources' acoustic descriptors (output.descriptors)
 RECEIVERS_GROUP = "receivers"  # HDF5 group of a shard's further receivers: receivers/NAME/{audio, mic_positions}
 
 

@@ -64,13 +64,17 @@ def _encoded(v):
 @dataclass(frozen=True)
 class RoomRecord(JsonFields, _JsonMapping):
     """The room: simulated (``dims`` m, requested ``rt60`` s, ``rt60_measured`` s or None),
-    or an RIR-bank room (``name``, ``bank`` path; ``dims``/``rt60`` when the bank knows them)."""
+    or an RIR-bank room (``name``, ``bank`` path; ``dims``/``rt60`` when the bank knows them).
+    ``volume_m3`` and ``floor_area_m2``: with ``output.descriptors``, where the dims are known."""
 
     name: str | None = key(None, omit=lambda r: not r.is_bank)
     bank: str | None = key(None, omit=lambda r: not r.is_bank)
     dims: list | None = None
     rt60: float | None = None
     rt60_measured: float | None = None
+    # with output.descriptors (absent otherwise): the room's size, where its dims are known
+    volume_m3: float | None = key(None, omit=unset("volume_m3"))
+    floor_area_m2: float | None = key(None, omit=unset("floor_area_m2"))
 
     @property
     def is_bank(self) -> bool:
@@ -117,7 +121,9 @@ class SourceRecord(JsonFields, _JsonMapping):
 
     azimuth, elevation: [F] degrees, distance: [F] metres (None where positionless);
     active: [F] bool; tir_db, gain_db: dB; level_dbfs: active-frame RMS of its image
-    in the mixture (mean over mic channels; W for FOA). pairing (``target``, ``random``,
+    in the mixture (mean over mic channels; W for FOA). acoustics ({drr_db, c50_db, edt_s,
+    t30_s, t30_bands_s}, acoustics/descriptors.py) and motion (scene/motion.py): with
+    ``output.descriptors``, for directional sources. pairing (``target``, ``random``,
     ``hard``, ``easy``, ``same-kind``) and caption_similarity (of its captions to the query
     caption): only in records of datasets with extended queries (docs/queries.md), else None.
     """
@@ -142,10 +148,14 @@ class SourceRecord(JsonFields, _JsonMapping):
     pairing: str | None = key(None, omit=_no_pairing)
     caption_similarity: float | None = key(None, omit=_no_pairing)
     power_db: float | None = key(None, omit=unset("power_db"))  # levels that follow distance only
+    # with output.descriptors (absent otherwise): acoustic/descriptors.py, scene/motion.py
+    acoustics: dict | None = key(None, omit=unset("acoustics"))
+    motion: str | None = key(None, omit=unset("motion"))
 
     @classmethod
     def of(cls, source, azimuth: list, elevation: list, distance: list, active: list, gain_db: float,
-           level_dbfs: float, pairing: str | None = None, caption_similarity: float | None = None) -> "SourceRecord":
+           level_dbfs: float, pairing: str | None = None, caption_similarity: float | None = None,
+           acoustics: dict | None = None, motion: str | None = None) -> "SourceRecord":
         """The record of a recipe's :class:`~tsel_data.scene.recipe.Source` (its clip, placement
         and requested levels, as planned) with what was rendered: labels, gain and level."""
         return cls(role=source.role, clip_id=source.clip_id, audio=source.audio, captions=list(source.captions),
@@ -154,7 +164,7 @@ class SourceRecord(JsonFields, _JsonMapping):
                    path=None if not source.path else [list(kn) for kn in source.path], bank=source.bank,
                    azimuth=azimuth, elevation=elevation, distance=distance, active=active, tir_db=source.tir_db,
                    gain_db=gain_db, level_dbfs=level_dbfs, pairing=pairing, caption_similarity=caption_similarity,
-                   power_db=source.power_db)
+                   power_db=source.power_db, acoustics=acoustics, motion=motion)
 
     @classmethod
     def from_json(cls, d: dict, k: int = 0) -> "SourceRecord":

@@ -26,7 +26,7 @@ from .codings import create_audio, encode
 from .dataset import FORMAT_VERSION, ShardEntry
 from .integrity import FileSeal, Seal
 from .layout import Layout, shard_names
-from .layout import NOISE_GROUP, RECEIVERS_GROUP
+from .layout import DESCRIPTORS_GROUP, NOISE_GROUP, RECEIVERS_GROUP
 from .records import LABEL_KEYS
 from .sanity import check_scene
 from .scene import Scene
@@ -38,6 +38,8 @@ SPACE_MARGIN = 0.25
 
 # Per-scene query columns of a shard with extended queries (docs/format.md): name -> default.
 QUERY_COLUMNS = {"query_type": "caption", "query_relation": "", "query_margin": float("nan"), "pairing": "random"}
+# per source [N, S] (NaN where unmeasured or padded), from the records (output.descriptors)
+DESCRIPTOR_KEYS = ("drr_db", "c50_db", "edt_s", "t30_s")
 
 
 def _query_row(s: Scene) -> dict | None:
@@ -48,6 +50,24 @@ def _query_row(s: Scene) -> dict | None:
         return None
     return {"query_type": rec.query_type, "query_relation": rec.query_relation or "", "query_margin": rec.query_margin,
             "pairing": rec.pairing}
+
+
+def _descriptor_row(s: Scene) -> dict | None:
+    """A scene's descriptors as the shard's ``descriptors/`` datasets hold them, or None
+    for a scene without (``output.descriptors`` off)."""
+    rec = s.record
+    if rec is None:
+        return None
+    if all(src.motion is None and src.acoustics is None for src in rec.sources) and rec.room.volume_m3 is None:
+        return None
+    acoustics = [src.acoustics or {} for src in rec.sources]
+    return {"sources": {key: [a.get(key) for a in acoustics] for key in DESCRIPTOR_KEYS},
+            "bands": [a.get("t30_bands_s") or {} for a in acoustics], "motion": [src.motion or "" for src in rec.sources],
+            "volume_m3": rec.room.volume_m3, "floor_area_m2": rec.room.floor_area_m2}
+
+
+def _nan(v) -> float:
+    return np.nan if v is None else float(v)
 
 
 def write_shard(out_dir: str, split: str, shard: int, scenes: list[Scene], attrs: dict,
@@ -88,6 +108,7 @@ class ShardWriter:
         self.tmp = f"{self.h5_path}.tmp-{os.getpid()}"
         self.kept: list[Scene] = []  # without audio and record
         self.query_rows: list[dict | None] = []
+        self.descriptor_rows: list[dict | None] = []
         self.records: list[str] = []  # each scene's record, as it appears in the JSON shard
         self.entry: ShardEntry | None = None
         self._h5 = self._audio = None
@@ -129,6 +150,7 @@ class ShardWriter:
         # keep the record as the JSON text it becomes: a fraction of its Python objects' size
         self.records.append(json.dumps(jsonable(scene.record), ensure_ascii=False, indent=1).replace("\n", "\n  "))
         self.query_rows.append(_query_row(scene))
+        self.descriptor_rows.append(_descriptor_row(scene))
         self.kept.append(replace(scene, audio=None, record=None,
                                  receivers={k: (None, m) for k, (_, m) in (scene.receivers or {}).items()}))
 
@@ -179,6 +201,8 @@ class ShardWriter:
                     vals = [((s.noise or {}).get(kind) or (None, None))[col] for s in scenes]
                     h.create_dataset(f"{NOISE_GROUP}/{kind}/{key}", data=np.array(
                         [np.nan if v is None else v for v in vals], dtype=np.float32), track_times=False)
+            if any(self.descriptor_rows):  # only with output.descriptors: other shards keep their bytes
+                self._write_descriptors(h, n_src, str_t)
             for name in self._others:  # each further receiver: its audio (written above) and capsules
                 g = h[f"{RECEIVERS_GROUP}/{name}"]
                 g.create_dataset("mic_positions", data=np.stack([s.receivers[name][1] for s in scenes])
@@ -206,6 +230,35 @@ class ShardWriter:
         except (OSError, RuntimeError) as e:
             raise write_error(what, e, self.out_dir, resumable=True) from None
         self.entry = ShardEntry(self.h5_rel, self.json_rel, len(scenes), h5_seal.sha256, json_seal.sha256)
+
+
+    def _write_descriptors(self, h, n_src: int, str_t) -> None:
+        """``descriptors/``: per source [N, S] the DESCRIPTOR_KEYS and ``motion``, per source
+        and octave band ``t30_bands_s`` [N, S, B] (band centres in its ``bands_hz``), per
+        scene ``volume_m3`` and ``floor_area_m2`` [N]; NaN (or "") where not measured."""
+        rows = [r or {"sources": {}, "bands": [], "motion": [], "volume_m3": None, "floor_area_m2": None}
+                for r in self.descriptor_rows]
+        g = h.create_group(DESCRIPTORS_GROUP)
+        for key in DESCRIPTOR_KEYS:
+            a = np.full((len(rows), n_src), np.nan, np.float32)
+            for i, r in enumerate(rows):
+                vals = r["sources"].get(key, [])
+                a[i, :len(vals)] = [_nan(v) for v in vals]
+            g.create_dataset(key, data=a, track_times=False)
+        bands = sorted({int(b) for r in rows for src in r["bands"] for b in src})
+        a = np.full((len(rows), n_src, len(bands)), np.nan, np.float32)
+        for i, r in enumerate(rows):
+            for k, src in enumerate(r["bands"]):
+                for j, b in enumerate(bands):
+                    a[i, k, j] = _nan(src.get(str(b)))
+        d = g.create_dataset("t30_bands_s", data=a, track_times=False)
+        d.attrs["bands_hz"] = np.array(bands, dtype=np.int32)
+        motion = np.full((len(rows), n_src), "", dtype=object)
+        for i, r in enumerate(rows):
+            motion[i, :len(r["motion"])] = r["motion"]
+        g.create_dataset("motion", data=motion, dtype=str_t, track_times=False)
+        for key in ("volume_m3", "floor_area_m2"):
+            g.create_dataset(key, data=np.array([_nan(r[key]) for r in rows], np.float32), track_times=False)
 
 
 def _shard_json(header: dict, records: list[str]) -> bytes:

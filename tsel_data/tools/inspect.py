@@ -113,12 +113,35 @@ def summary(scene: Scene) -> str:
         lines.append(f"  [{s}] {info.role:<10} {info.clip_id or '?'}  {info.spatial}"
                      f"{' moving' if info.moving else ''}  {pos}  active {100 * act.mean():.0f}% of frames"
                      + (f"  {', '.join(extra)}" if extra else ""))
+        described = acoustics_text(info)
+        if described:
+            lines.append(f"        {described}")
         for cap in info.captions:
             lines.append(f"        caption: {cap}")
     if rec.noise:
         lines.append("noise (unlabelled):")
         lines += [f"  {kind:<9} {'  '.join(rest)}" for kind, *rest in (noise_parts(n) for n in rec.noise)]
     return "\n".join(lines)
+
+
+def acoustics_text(source) -> str | None:
+    """A source's motion class and acoustic descriptors in words (``output.descriptors``),
+    or None for a record without them."""
+    a, parts = source.acoustics or {}, []
+    if source.motion:
+        parts.append(source.motion)
+    for key, label, fmt in (("drr_db", "DRR", "{:.1f} dB"), ("c50_db", "C50", "{:.1f} dB"),
+                            ("edt_s", "EDT", "{:.2f} s"), ("t30_s", "T30", "{:.2f} s")):
+        if a.get(key) is not None:
+            parts.append(f"{label} {fmt.format(a[key])}")
+    bands = {int(b): t for b, t in (a.get("t30_bands_s") or {}).items() if t is not None}
+    if bands:
+        parts.append("T30 by octave " + " ".join(f"{_hz(b)} {t:.2f}" for b, t in sorted(bands.items())) + " s")
+    return ", ".join(parts) or None
+
+
+def _hz(f: int) -> str:
+    return f"{f // 1000}k" if f >= 1000 else str(f)
 
 
 def write_wav(scene: Scene, path: str, subtype: str = "FLOAT") -> str:

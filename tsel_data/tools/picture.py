@@ -129,6 +129,8 @@ def room_text(rec) -> str | None:
     """The room in words (size, RT60, the bank it comes from), or None when unknown."""
     room = rec.room
     dims = f"{' x '.join(f'{d:.2f}' for d in room.dims)} m" if room.dims else "size unknown"
+    if room.volume_m3 is not None:
+        dims += f" ({room.volume_m3:.0f} m³, floor {room.floor_area_m2:.0f} m²)"
     rt60, meas = room.rt60, room.rt60_measured
     if room.is_bank:
         return (f"{room.name} of RIR bank {room.bank}, {dims}, "

@@ -69,7 +69,8 @@ class SplitTally:
         self.raw = {k: [] for k in ("target_az", "target_el", "separation", "target_dist", "interferer_dist",
                                     "room_x", "room_y", "room_z", "volume", "rt60", "rt60_measured",
                                     "target_level", "tir", "peak", "target_active", "query_words", "speed",
-                                    "moves", "snr")}
+                                    "moves", "snr", "drr", "c50", "t30")}
+        self.source_motion = Counter()  # motion classes of the directional sources (output.descriptors)
         self.clip_uses, self.target_clips = Counter(), Counter()
         self.target_audio: dict[str, str] = {}
         self.scenarios, self.motions = Counter(), Counter()
@@ -127,6 +128,11 @@ class SplitTally:
         raw["query_words"].append(len(sc.query.split()))
         if rec.noise:
             raw["snr"].append(scene_snr(rec.noise))
+        target = rec.sources[0].acoustics
+        if target:
+            for key, name in (("drr_db", "drr"), ("c50_db", "c50"), ("t30_s", "t30")):
+                raw[name].append(target.get(key))
+        self.source_motion.update(src.motion for src in rec.sources if src.motion)
 
     def result(self) -> dict:
         raw, n, clip_uses, target_clips = self.raw, self.n, self.clip_uses, self.target_clips
@@ -162,8 +168,19 @@ class SplitTally:
             "target_elevation_deg": _summ(raw["target_el"]),
             "queries": self.queries.result(),
             **self._recorded(),
+            **self._descriptors(),
             "raw": raw,
         }
+
+    def _descriptors(self) -> dict:
+        """{"descriptors": the targets' DRR, C50 and T30, every source's motion class} of a
+        split made with output.descriptors; else {} (other stats keep their keys)."""
+        if not self.source_motion and not self.raw["drr"]:
+            return {}
+        raw = self.raw
+        return {"descriptors": {"target_drr_db": _summ(raw["drr"]), "target_c50_db": _summ(raw["c50"]),
+                                "target_t30_s": _summ(raw["t30"]),
+                                "source_motion": dict(self.source_motion.most_common())}}
 
     def _recorded(self) -> dict:
         """{"recorded": ...} of a recorded dataset's split: what its windows held, what
@@ -309,6 +326,12 @@ def format_text(stats: dict) -> str:
         out.append(_line("target elevation (deg)", s["target_elevation_deg"], fmt=".1f"))
         out.append(_line("moving source speed (deg/s)", s["moving_sources"]["speed_deg_s"], fmt=".1f"))
         out.append(_line("query length (words)", s["query_words"], fmt=".0f"))
+        d = s.get("descriptors")
+        if d:
+            out.append(_line("target DRR (dB)", d["target_drr_db"], fmt=".1f"))
+            out.append(_line("target C50 (dB)", d["target_c50_db"], fmt=".1f"))
+            out.append(_line("target T30 (s)", d["target_t30_s"]))
+            out.append("  sources' motion: " + ", ".join(f"{k} {v}" for k, v in d["source_motion"].items()))
         out += _query_lines(s["queries"])
         out += _recorded_lines(s.get("recorded"))
     return "\n".join(out)
