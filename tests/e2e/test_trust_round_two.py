@@ -218,6 +218,32 @@ def test_a_config_or_hrtf_that_is_a_folder_a_loop_or_a_device_is_named_as_such(k
     assert want in line and "not found" not in line
 
 
+@pytest.mark.parametrize("kind", ["fifo", "file", "loop"])
+def test_a_dataset_or_release_folder_that_is_no_folder_is_named_as_such(kind, tmp_path, demo_corpus, tsel_cli):
+    p = tmp_path / "d"
+    want = {"fifo": "is not a folder: it is a FIFO", "file": "is a file",
+            "loop": "is a symbolic link that loops"}[kind]
+    if kind == "file":
+        p.write_text("x")
+    elif kind == "loop":
+        os.symlink("d", p)
+    with Fifo(p) if kind == "fifo" else _nothing() as f:
+        for argv in (["stats", p], ["inspect", p, "test/0"], ["export", "dcase", p, "--out", tmp_path / "ex"],
+                     ["check", p], ["generate", "--from", p, "--corpus-dir", demo_corpus, "--out", tmp_path / "rb"]):
+            line = tsel_cli.refused(*argv)
+            assert want in line and "not found" not in line and "no such" not in line, (argv[0], line)
+    assert f is None or not f.opened
+    assert not (tmp_path / "ex").exists() and not (tmp_path / "rb").exists()
+
+
+class _nothing:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False
+
+
 def test_a_dcase_prediction_that_is_dev_zero_is_refused_not_read(tiny, tmp_path, tsel_cli):
     pred = tmp_path / "pred"
     pred.mkdir()
@@ -374,10 +400,18 @@ def _damage(ds: str, how: str) -> str:
         doc["scenes"][0]["sources"] = "target"
     elif how == "level-string":
         doc["scenes"][0]["levels"] = {"peak": "loud"}
-    elif how in ("no-azimuth", "mics-shape", "ids-short", "active-shape"):
+    elif how == "acoustics-string":
+        doc["scenes"][0]["sources"][0]["acoustics"] = {"drr_db": "x", "t30_bands_s": {"500": 0.4}}
+    elif how == "bands-list":
+        doc["scenes"][0]["sources"][0]["acoustics"] = {"drr_db": 1.0, "t30_bands_s": [0.4]}
+    elif how in ("no-azimuth", "mics-shape", "ids-short", "active-shape", "no-audio", "nan-audio"):
         with h5py.File(h5, "a") as f:
             if how == "no-azimuth":
                 del f["labels/azimuth"]
+            elif how == "no-audio":
+                del f["audio"]
+            elif how == "nan-audio":
+                f["audio"][0, 1, 7] = np.nan
             elif how == "mics-shape":
                 m = f["mic_positions"][()]
                 del f["mic_positions"]
@@ -395,18 +429,23 @@ def _damage(ds: str, how: str) -> str:
     return "shard-00000.json"
 
 
-DAMAGE = ["labels-list", "scenes-string", "no-sources", "sources-string", "level-string", "no-azimuth",
-          "mics-shape", "ids-short", "active-shape"]
+DAMAGE = ["labels-list", "scenes-string", "no-sources", "sources-string", "level-string", "acoustics-string",
+          "bands-list", "no-azimuth", "mics-shape", "ids-short", "active-shape", "no-audio", "nan-audio"]
+AUDIO_ONLY = ("no-audio", "nan-audio")  # tools that read labels only (stats) need not open the audio
 
 
 @pytest.mark.parametrize("how", DAMAGE)
 def test_a_shard_of_the_wrong_shape_is_one_line_naming_it_from_every_reader(how, tiny, tmp_path, tsel_cli):
     ds = _copy(tiny, tmp_path)
     shard = _damage(ds, how)
-    for argv in (["stats", ds, "--split", "test"], ["inspect", ds, "test/0"], ["verify", ds, "--split", "test"],
-                 ["export", "dcase", ds, "--out", tmp_path / "ex", "--split", "test"]):
+    readers = [["inspect", ds, "test/0"], ["verify", ds, "--split", "test"]]
+    readers += [["export", fmt, ds, "--out", tmp_path / fmt, "--split", "test"] for fmt in ("dcase", "webdataset")]
+    for argv in readers + ([] if how in AUDIO_ONLY else [["stats", ds, "--split", "test"]]):
         line = tsel_cli.refused(*argv)
-        assert shard in line, (argv[0], line)
+        assert shard in line and "damaged shard" in line, (argv[0], line)
+    assert not list(tmp_path.glob("dcase/**/*.wav")) and not list(tmp_path.glob("webdataset/**/*.tar"))
+    if how in AUDIO_ONLY:
+        return
     with pytest.raises(DatasetError, match=shard):
         with open_dataset(ds, "test") as d:
             for scene in d:
@@ -520,6 +559,14 @@ def test_a_stdout_that_goes_away_never_stops_the_work_nor_reads_as_the_dataset(e
     assert len(lines) == 1 and lines[0].startswith("note: ") and needle in lines[0], lines
 
 
+def test_a_stdout_closed_before_the_command_starts_is_no_traceback(tiny):
+    """`tsel stats D >&-`: Python starts with sys.stdout None (a traceback, exit 1, before)."""
+    p = subprocess.run(["sh", "-c", 'exec "$0" -m tsel_data.cli stats "$1" >&-', sys.executable, tiny],
+                       stderr=subprocess.PIPE, text=True)
+    assert p.returncode == 0 and "Traceback" not in p.stderr, p.stderr
+    assert p.stderr.startswith("note: stdout could not be written (it was closed before the command started)")
+
+
 def test_generate_into_a_closed_pipe_finishes_and_says_so(demo_corpus, tmp_path):
     """`tsel generate ... | true` exited 1 without a word, leaving only plan/."""
     p = subprocess.Popen([sys.executable, "-m", "tsel_data.cli", "generate", *DEMO, "--corpus-dir", demo_corpus,
@@ -607,13 +654,14 @@ def test_a_dcase_prediction_row_the_dataset_cannot_have_is_refused(row, needle, 
 # --- 12. Unicode file names match under NFC and NFD --------------------------------------------------
 
 
-def test_a_corpus_copied_from_macos_loses_no_clip(demo_corpus, tmp_path, tsel_cli):
+@pytest.mark.parametrize("disk,listed", [("NFD", "NFC"), ("NFC", "NFD")])
+def test_a_corpus_copied_from_macos_loses_no_clip(disk, listed, demo_corpus, tmp_path, tsel_cli):
     corpus = tmp_path / "corpus"
     shutil.copytree(demo_corpus, corpus)
     manifest = (corpus / "train.csv").read_text(encoding="utf-8")
     first = manifest.splitlines()[1].split(",")[1]  # a youtube_id: its file is audio/{id}.wav
-    nfc, nfd = (unicodedata.normalize(f, "café-oiseau") for f in ("NFC", "NFD"))
-    (corpus / "audio" / f"{first}.wav").rename(corpus / "audio" / f"{nfd}.wav")
-    (corpus / "train.csv").write_text(manifest.replace(first, nfc), encoding="utf-8")
+    on_disk, in_manifest = (unicodedata.normalize(f, "café-oiseau") for f in (disk, listed))
+    (corpus / "audio" / f"{first}.wav").rename(corpus / "audio" / f"{on_disk}.wav")
+    (corpus / "train.csv").write_text(manifest.replace(first, in_manifest), encoding="utf-8")
     report = json.loads(tsel_cli.ok("check", "--preset", "demo", "--corpus-dir", corpus, "--no-plan", "--json"))
     assert report["facts"]["splits"]["train"]["missing"] == 0, report["warnings"]

@@ -191,7 +191,7 @@ class ExportJob:
         card's statistics as they go, and the card does not read them again."""
         tally = SplitTally(self.root, ds.split) if self.writer.opts.get("card") else None
         for i in range(len(ds)):
-            scene = ds.get(i, audio=audio)
+            scene = ds.finite(ds.get(i, audio=audio))
             if tally is not None:
                 tally.add(scene)
             yield scene

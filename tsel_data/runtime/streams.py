@@ -60,12 +60,30 @@ class GuardedStream:
         return getattr(self._stream, name)
 
 
+def _closed_at_start(stream, fd: int, name: str) -> GuardedStream:
+    """A stream started closed (``tsel stats D >&-``: Python's sys.stdout is None): its
+    descriptor is taken by /dev/null at once, so no file the command opens gets it (a
+    shard opened as descriptor 1 would take whatever a library prints), and its writes
+    are dropped; the note says it was closed."""
+    try:
+        os.fstat(fd)
+    except OSError:
+        null = os.open(os.devnull, os.O_WRONLY)
+        if null != fd:
+            os.dup2(null, fd)
+            os.close(null)
+    guarded = GuardedStream(stream if stream is not None else open(os.devnull, "w"), name)
+    if stream is None:
+        guarded.failed = OSError(errno.EBADF, "it was closed before the command started")
+    return guarded
+
+
 @contextmanager
 def guarded_output():
     """``with guarded_output() as (out, err):`` sys.stdout and sys.stderr are
     :class:`GuardedStream` s for the block, the originals again after it."""
     before = sys.stdout, sys.stderr
-    out, err = GuardedStream(sys.stdout, "stdout"), GuardedStream(sys.stderr, "stderr")
+    out, err = _closed_at_start(sys.stdout, 1, "stdout"), _closed_at_start(sys.stderr, 2, "stderr")
     sys.stdout, sys.stderr = out, err
     try:
         yield out, err

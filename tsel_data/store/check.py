@@ -46,7 +46,8 @@ def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckRe
     """
     rep = CheckReport(f"dataset {out_dir}")
     if not os.path.isdir(out_dir):
-        rep.error(DatasetError(f"{out_dir}: no such folder; give the --out folder of `tsel generate`"))
+        why = f" {path_problem(out_dir, folder=True)}" if os.path.lexists(out_dir) else ": no such folder"
+        rep.error(DatasetError(f"{out_dir}{why}; give the --out folder of `tsel generate`"))
         return rep
     layout = Layout(out_dir)
     if not os.path.isfile(layout.dataset_file):

@@ -151,6 +151,7 @@ def load_dataset_doc(root: str) -> DatasetDoc:
     """Parse ``ROOT/dataset.json`` (DatasetError with a clear message if absent or bad)."""
     root = os.fspath(root)
     path = os.path.join(root, DATASET_FILE)
+    check_input(root, DatasetError, "give the --out folder of `tsel generate`", folder=True)
     if not os.path.isdir(root):
         raise DatasetError(f"{root}: no such dataset directory")
     if not os.path.exists(path):

@@ -147,6 +147,15 @@ class SceneDataset:
                             f"every damaged file: delete them, then run `tsel render {self.root}` and `tsel finalize "
                             f"{self.root}`")
 
+    def finite(self, scene: Scene) -> Scene:
+        """``scene`` (read with its audio) when every sample is finite, else the damaged-shard
+        error naming its shard. Every reader that writes a scene's audio elsewhere or
+        computes on it (exports, ``inspect``, ``verify``) asks: no NaN ever leaves a
+        dataset. Not the reader's own path: it costs as much as reading the scene."""
+        if scene.audio is not None and not np.isfinite(scene.audio).all():
+            raise self.damaged(self.locate(scene.index)[0], f"scene {scene.scene_id}'s audio holds NaN or Inf samples")
+        return scene
+
     def _records(self, k: int) -> list:
         recs = self._json.get(k)
         if recs is None:

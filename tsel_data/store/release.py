@@ -181,6 +181,7 @@ def load_release(root: str) -> Release:
     the corpus; every scene with its checksums, every file a recipe reads listed."""
     root = os.fspath(root)
     path = os.path.join(root, RELEASE_FILE)
+    check_input(root, DatasetError, "a release is the folder `tsel export recipes` wrote", folder=True)
     check_input(path, DatasetError, "the release is damaged: download or export it again")
     if not os.path.isfile(path):
         raise DatasetError(f"{path} not found: {root} is not a recipe release (`tsel export recipes DIR --out "
