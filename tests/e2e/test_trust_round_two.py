@@ -236,6 +236,33 @@ def test_a_dataset_or_release_folder_that_is_no_folder_is_named_as_such(kind, tm
     assert not (tmp_path / "ex").exists() and not (tmp_path / "rb").exists()
 
 
+def test_a_folder_to_read_or_make_where_a_fifo_or_a_file_is_named_as_such(tiny, tmp_path, demo_corpus, tsel_cli):
+    (tmp_path / "file").write_text("x")
+    with Fifo(tmp_path / "fifo") as f:
+        fifo, file = str(tmp_path / "fifo"), str(tmp_path / "file")
+        cases = [
+            (_demo_check("--corpus-dir", fifo, "--no-plan"), "fifo is not a folder: it is a FIFO"),
+            (_demo_check("--corpus-dir", demo_corpus, "--set", f'noise.ambience="{fifo}"', "--no-plan"),
+             "fifo is not a folder: it is a FIFO"),
+            (["generate", *DEMO, "--corpus-dir", demo_corpus, "--out", fifo], "fifo is not a folder: it is a FIFO"),
+            (["generate", *DEMO, "--corpus-dir", demo_corpus, "--out", f"{file}/ds"], "file is a file, not a folder"),
+            (["export", "dcase", tiny, "--out", f"{file}/ex"], "file is a file, not a folder"),
+            (["inspect", tiny, "test/0", "--png", f"{fifo}/x.png"], "fifo is not a folder: it is a FIFO"),
+            (["stats", tiny, "--png", f"{fifo}/sub/x.png"], "fifo is not a folder: it is a FIFO"),
+        ]
+        for argv, needle in cases:
+            line = tsel_cli.refused(*argv)
+            assert needle in line and "does not exist" not in line and "not found" not in line, (argv, line)
+    assert not f.opened and stat.S_ISFIFO(os.lstat(fifo).st_mode) and open(file).read() == "x"
+
+
+def test_check_says_a_problem_found_twice_once(demo_corpus, tmp_path, tsel_cli):
+    """The embeddings file is looked at for each split: one line, not one per split."""
+    code, _, err = tsel_cli.run(*_demo_check("--corpus-dir", demo_corpus, "--set", 'scene.similarity="embeddings"',
+                                             "--set", f'corpus.caption_embeddings="{tmp_path}"'))
+    assert code == 2 and err.count("is a folder, not a file") == 1, err
+
+
 class _nothing:
     def __enter__(self):
         return None

@@ -9,6 +9,7 @@ seconds).
 """
 from __future__ import annotations
 
+import errno
 import importlib
 import os
 import sys
@@ -17,6 +18,7 @@ from concurrent.futures.process import BrokenProcessPool
 import click
 from click.exceptions import NoArgsIsHelpError
 
+from ..core.files import blocked_folder
 from ..errors import TselError, WriteError, tidy_message
 from ..runtime.signals import Stopped, stop_requested, stop_signals
 from ..runtime.streams import guarded_output, output_note
@@ -107,6 +109,9 @@ def _run(argv):
         sys.exit(130)
     except OSError as e:
         # full disk, unwritable output: say which file, no traceback
+        blocked = e.filename and e.errno in (errno.ENOTDIR, errno.EEXIST) and blocked_folder(e.filename)
+        if blocked:  # a folder to make where a file, a FIFO or a device is
+            _fail(f"cannot make the folder {e.filename}: {blocked}; choose another path")
         _fail(f"{e.strerror or e}: {e.filename or ''}".rstrip(": "))
 
 

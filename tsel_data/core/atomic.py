@@ -17,7 +17,7 @@ import os
 from contextlib import contextmanager
 
 from ..errors import TselError, WriteError, broken_link, shown_path
-from .files import replace_problem
+from .files import blocked_folder, replace_problem
 from .jsonable import jsonable
 from .libc import libc
 
@@ -228,6 +228,9 @@ def _missing_folder(filename: str, folder: str) -> tuple[str, str] | None:
                 return f"{shown_path(p)} {link}", "create what it points to, or remove the link"
             p = os.path.dirname(p)
     if folder and not os.path.isdir(folder):
+        blocked = blocked_folder(folder)  # a file, a FIFO, a device where a folder should be
+        if blocked:
+            return blocked, "choose a folder, or write elsewhere"
         return f"the folder {shown_path(folder)} does not exist", "create it or write elsewhere"
     return None
 

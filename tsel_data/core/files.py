@@ -88,6 +88,20 @@ def replace_problem(path) -> str | None:
     return f"is {what}, not a file: nothing is written in its place, not even with --force; choose another name"
 
 
+def blocked_folder(path) -> str | None:
+    """Why the folders of ``path`` cannot be made ("P is a file, not a folder", "P is not
+    a folder: it is a FIFO ..."): the nearest part of it that exists and is no folder,
+    for the ENOTDIR or EEXIST of ``os.makedirs``; None when there is none."""
+    p = os.path.abspath(os.fspath(path))
+    while True:
+        if os.path.lexists(p) and not os.path.isdir(p):
+            return f"{p} {path_problem(p, folder=True)}"
+        up = os.path.dirname(p)
+        if up == p:
+            return None
+        p = up
+
+
 def is_regular(path) -> bool:
     """Whether ``path`` is (or links to) a regular file: what may be opened for reading."""
     try:

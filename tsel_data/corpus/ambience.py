@@ -218,6 +218,7 @@ def find_ambience(root, channels: int, fs: int, fmt: str | None = None,
     if not base.exists():
         raise ConfigError(f"ambience folder {base} not found; point at the TAU-SNoise_DB folder (room folders "
                           f"01_bomb_center …) or at a folder of recordings")
+    check_input(base, ConfigError, "point at the TAU-SNoise_DB folder or at a folder of recordings", folder=True)
     if not base.is_dir():
         raise ConfigError(f"ambience {base} is not a folder; point at the TAU-SNoise_DB folder or at a folder "
                           f"of recordings")
