@@ -217,8 +217,10 @@ class ExportJob:
         try:
             full = inside(self.out, rel)
         except ValueError as e:
+            why = ("a symbolic link in --out leads elsewhere: remove it, or choose another --out"
+                   if name_problem(rel) is None else "is dataset.json edited?")
             raise DatasetError(f"{self.root}: the export would write {rel!r}, which {e}; an export writes only inside "
-                               f"--out: is dataset.json edited?") from None
+                               f"--out: {why}") from None
         if rel not in self._claimed:
             self.check_free(rel)
             self._journal_line(rel)
