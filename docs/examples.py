@@ -63,7 +63,7 @@ GROUPS = {
     "generate": ("dataset", ["commands/generate.md"]),
     "read": ("dataset", ["commands/check.md", "commands/inspect.md", "commands/stats.md", "reader.md", "format.md"]),
     "verify": ("dataset", ["commands/verify.md", "baseline.md"]),
-    "export": ("dataset", ["commands/export.md", "commands/eval.md"]),
+    "export": ("dataset", ["commands/export.md", "commands/eval.md", "spatial-language.md"]),
     "recorded": ("corpus", ["recorded.md"]),
 }
 PAGES = [page for _, pages in GROUPS.values() for page in pages]

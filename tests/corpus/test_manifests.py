@@ -6,7 +6,6 @@ import gc
 import io
 import json
 import os
-import time
 from pathlib import Path
 
 import pytest
@@ -201,10 +200,8 @@ def test_gc_state_restored(tmp_path, val_csv):
 
 
 @pytest.mark.skipif(not SHARED_AUDIOCAPS.is_dir(), reason="../shared/audiocaps not present")
-def test_real_audiocaps_counts_and_speed():
-    t0 = time.perf_counter()
+def test_real_audiocaps_counts():
     clips = {s: read_audiocaps(SHARED_AUDIOCAPS / f"{s}.csv") for s in ("train", "val", "test")}
-    elapsed = time.perf_counter() - t0
     expected = {"train": (49838, 1), "val": (495, 5), "test": (975, 5)}
     for s, (n_clips, n_caps) in expected.items():
         assert len(clips[s]) == n_clips
@@ -214,7 +211,6 @@ def test_real_audiocaps_counts_and_speed():
     assert sum(len(c.captions) for c in clips["train"]) == 49838
     assert sum(len(c.captions) for c in clips["val"]) == 2475
     assert sum(len(c.captions) for c in clips["test"]) == 4875
-    assert elapsed < 5.0, f"parsing the three AudioCaps files took {elapsed:.2f} s"
 
 
 # ---------------------------------------------------------------- Clotho

@@ -3,7 +3,6 @@ measures, the band sampler, defaults that change nothing, determinism, the shard
 record fields, on-the-fly scenes with the new options, and one-line config mistakes."""
 import json
 import os
-import time
 from dataclasses import replace
 
 import h5py
@@ -217,27 +216,21 @@ def test_cli_reports_a_query_mistake_in_one_line_with_code_2(capsys):
 
 @pytest.mark.skipif(not os.path.isdir(AUDIOCAPS), reason="shared AudioCaps manifests not present")
 @pytest.mark.parametrize("pairing", ["hard", "easy"])
-def test_real_audiocaps_pairing_plans_fast(tmp_path, pairing):
-    """Hard and easy pairing over the real captions (~50k in train) plan at about the
-    speed of random pairing: the TF-IDF index is built once, bands are drawn in batches."""
+def test_real_audiocaps_pairing_draws_its_bands(tmp_path, pairing):
+    """Hard and easy pairing over the real captions (~50k in train) find interferers in
+    their band for most scenes, and same-kind distractors where asked. Their speed against
+    random pairing is benchmarks/bench_planning.py's (a time is no test on a shared machine)."""
     for name in ("train", "val", "test"):
         os.symlink(os.path.abspath(os.path.join(AUDIOCAPS, f"{name}.csv")), tmp_path / f"{name}.csv")
     from tsel_data.plan.sampler import prepare_views
     from tsel_data.store.layout import Layout
 
-    def run(*over):
-        cfg = load_config(preset="paper-sim-2dir", corpus_dir=str(tmp_path), splits={"train": 2000},
-                          overrides=['corpus.check="none"', *over])
-        _, views = prepare_views(cfg, Layout(str(tmp_path / "home")))
-        t0 = time.perf_counter()
-        recipes = [plan_scene(cfg, "train", i, views["train"]) for i in range(2000)]
-        return time.perf_counter() - t0, recipes
-
-    t_rand, _ = run('scene.similarity="tfidf"')
-    t_band, recipes = run('scene.similarity="tfidf"', f'scene.pairing="{pairing}"', "scene.same_kind_distractors=0.2")
-    kinds = [r.query_plan.pairings[1] for r in recipes]
+    cfg = load_config(preset="paper-sim-2dir", corpus_dir=str(tmp_path), splits={"train": 2000},
+                      overrides=['corpus.check="none"', 'scene.similarity="tfidf"', f'scene.pairing="{pairing}"',
+                                 "scene.same_kind_distractors=0.2"])
+    _, views = prepare_views(cfg, Layout(str(tmp_path / "home")))
+    kinds = [plan_scene(cfg, "train", i, views["train"]).query_plan.pairings[1] for i in range(2000)]
     assert kinds.count(pairing) > 0.7 * len(kinds) and kinds.count("same-kind") > 0.1 * len(kinds)
-    assert t_band < 2.0 * t_rand + 1.0, (t_band, t_rand)
 
 
 def test_embeddings_from_a_file_plan_scenes(small_config, tmp_path, demo_corpus):

@@ -62,6 +62,15 @@ DATASETS = {
     "signals": DatasetConfig(splits={"train": 10, "val": 0, "test": 0},
                              overrides=("audio.duration=3.0", "output.shard_size=2", 'room.rir_method="ism"',
                                         'room.rt60=["uniform", 0.9, 1.0]')),
+    # spatial captions and questions (export/test_spatial_language): static and moving (arcs and lines),
+    # two or three sources, additive ones, later onsets, diffuse noise, rooms from dry to reverberant
+    "language": DatasetConfig(splits={"train": 10, "val": 0, "test": 4},
+                              overrides=("audio.duration=3.0", "output.shard_size=7", 'scene.motion="mixed"',
+                                         'scene.path=["choose", ["arc", "line"]]', "scene.speed=40.0",
+                                         'scene.interferers=["choose", [1, 2]]',
+                                         'scene.scenario=["choose", ["two-directional", "directional+additive"]]',
+                                         'scene.onset=["uniform", 0.0, 1.5]', 'noise.diffuse="pink"',
+                                         'room.rt60=["uniform", 0.15, 1.2]')),
     # STARSS23's layout, recorded scenes of every window (e2e/test_recorded)
     "recorded": DatasetConfig(preset="starss23", splits={"train": 1000, "test": 1000}, corpus="recordings"),
     # each audio coding (store/test_store)

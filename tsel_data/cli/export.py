@@ -28,7 +28,7 @@ class _ExportGroup(click.Group):
 
 @click.group("export", cls=_ExportGroup)
 def export_cmd():
-    """Export a dataset for other tools (dcase, webdataset, hf, lhotse, recipes, card)."""
+    """Export a dataset for other tools (dcase, webdataset, hf, lhotse, recipes, captions, qa, card)."""
 
 
 def _option(o):

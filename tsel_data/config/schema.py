@@ -16,6 +16,7 @@ from ..choices import (Additive, AudioCoding, BadClipPolicy, Baffle, CheckLevel,
 from ..core.jsonable import jsonable
 from ..receivers import NAMES as RECEIVER_NAMES
 from ..scene.distributions import Dist
+from ..scene.queries import DEFAULT_MARGINS
 
 
 def option(default, doc: str, *, unit: str = "", choices=None, ge=None, gt=None, le=None, lt=None, why: str = "",
@@ -204,18 +205,19 @@ class SceneConfig:
                                           unit="probability", ge=0.0, le=1.0, new=True)
     same_kind_similarity: float = option(0.6, "a same-kind distractor's captions are at least this similar to the "
                                               "query caption", unit="similarity 0-1", gt=0.0, le=1.0, new=True)
-    margin_level: float = option(3.0, "loudest / quietest: the target's level at the array differs from every "
-                                      "other source's by at least this (same-kind distractors get |TIR| of at least "
-                                      "this plus 0.5 dB)", unit="dB", gt=0.0, le=60.0, new=True)
-    margin_distance: float = option(0.5, "nearest / farthest: the target is at least this much nearer / farther "
-                                         "than every other directional source, on every label frame", unit="m",
-                                    gt=0.0, le=100.0, new=True)
-    margin_onset: float = option(0.5, "starts first / last: the target's first active frame is at least this "
-                                      "before / after every other source's", unit="s", gt=0.0, le=600.0, new=True)
-    margin_motion: float = option(10.0, "moving: the target's direction travels at least this far while every "
-                                        "other source stays put", unit="deg", gt=0.0, le=360.0, new=True)
-    margin_solo: float = option(1.0, "heard at T: the target is the only active source on every label frame "
-                                     "within this window centred on T", unit="s", gt=0.0, le=600.0, new=True)
+    margin_level: float = option(DEFAULT_MARGINS["margin_level"], "loudest / quietest: the target's level at the "
+                                 "array differs from every other source's by at least this (same-kind distractors "
+                                 "get |TIR| of at least this plus 0.5 dB)", unit="dB", gt=0.0, le=60.0, new=True)
+    margin_distance: float = option(DEFAULT_MARGINS["margin_distance"], "nearest / farthest: the target is at least "
+                                    "this much nearer / farther than every other directional source, on every label "
+                                    "frame", unit="m", gt=0.0, le=100.0, new=True)
+    margin_onset: float = option(DEFAULT_MARGINS["margin_onset"], "starts first / last: the target's first active "
+                                 "frame is at least this before / after every other source's", unit="s", gt=0.0,
+                                 le=600.0, new=True)
+    margin_motion: float = option(DEFAULT_MARGINS["margin_motion"], "moving: the target's direction travels at least "
+                                  "this far while every other source stays put", unit="deg", gt=0.0, le=360.0, new=True)
+    margin_solo: float = option(DEFAULT_MARGINS["margin_solo"], "heard at T: the target is the only active source on "
+                                "every label frame within this window centred on T", unit="s", gt=0.0, le=600.0, new=True)
     motion: str = option("static", "`static`, `moving` or `mixed`. In simulated rooms a moving source follows "
                                    "`path`, with an RIR at least every 100 ms, every 4° and every 6 cm; "
                                    "with a bank it walks a bank trajectory, starting at a random point in a random "

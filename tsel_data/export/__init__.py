@@ -16,6 +16,9 @@ this one)::
     lhotse      lhotse manifests (recordings, supervisions, cuts) and the audio files
     recipes     recipe releases: the plan and per-scene checksums, no audio
     cardonly    the card alone, for any dataset
+    spatial     what the spatial-language exports read from a scene (facts, names, truth)
+    captions    spatial captions in a named vocabulary (JSONL)
+    qa          spatial question-answer pairs in a named schema (JSONL)
 
 What a format's files hold, and their readers, live in ``tsel_data.formats`` (the tools
 read them back without importing the writers).
@@ -27,15 +30,18 @@ from __future__ import annotations
 
 from ..errors import TselError
 from .base import ExportResult, Writer, WriterOption, run_export
+from .captions import CaptionsWriter
 from .cardonly import CardWriter
 from .dcase import DcaseWriter, export_dcase
 from .hf import HuggingFaceWriter
 from .lhotse import LhotseWriter
+from .qa import QaWriter
 from .recipes import RecipesWriter
 from .webdataset import WebDatasetWriter
 
 WRITERS: dict[str, type[Writer]] = {w.name: w for w in (DcaseWriter, WebDatasetWriter, HuggingFaceWriter,
-                                                        LhotseWriter, RecipesWriter, CardWriter)}
+                                                        LhotseWriter, RecipesWriter, CaptionsWriter, QaWriter,
+                                                        CardWriter)}
 
 
 def resolve_writer(name: str) -> type[Writer]:

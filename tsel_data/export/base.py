@@ -118,7 +118,7 @@ class Writer:
             value = options.get(name, o.default)
             if o.parse is not None and value is not None:
                 value = o.parse(value)
-            if o.choices and value not in o.choices:
+            if o.choices and value is not None and value not in o.choices:
                 raise TselError(f"export {self.name}: {name} {value!r} is not one of {', '.join(map(str, o.choices))}")
             self.opts[name] = value
 
@@ -135,11 +135,15 @@ class Writer:
 
     def finish(self, job: "ExportJob") -> list:
         """Files that span the splits, written after them (paths relative to the export)."""
-        return job.write_card(self.card_yaml(job)) if self.opts["card"] else []
+        return job.write_card(self.card_yaml(job), self.card_sections(job)) if self.opts["card"] else []
 
     def card_yaml(self, job: "ExportJob") -> dict:
         """Keys this format adds to the card's YAML header (the Hub's ``configs``)."""
         return {}
+
+    def card_sections(self, job: "ExportJob") -> list:
+        """Markdown lines this format adds to the card (what its own files hold)."""
+        return []
 
     def lines(self, result: "ExportResult") -> list:
         """What the command prints."""
@@ -280,8 +284,9 @@ class ExportJob:
             f.write(data)
         return rel
 
-    def write_card(self, yaml_extra: dict) -> list:
-        """README.md (and the figure, with the ``figure`` option): the dataset card."""
+    def write_card(self, yaml_extra: dict, sections: list | None = None) -> list:
+        """README.md (and the figure, with the ``figure`` option): the dataset card, with
+        the export's own ``sections`` (Markdown lines)."""
         files = []
         figure = None
         stats = dataset_stats(self.root, tallied=self._tallied)
@@ -291,7 +296,7 @@ class ExportJob:
             figure = FIGURE_FILE
             files.append(FIGURE_FILE)
         text = card_text(self.root, self.doc, export=self.writer.name, splits=self.exported_splits(),
-                         yaml_extra=yaml_extra, figure=figure, stats=stats)
+                         yaml_extra=yaml_extra, figure=figure, stats=stats, sections=sections)
         files.append(self.write_text(CARD_FILE, text))
         return files
 

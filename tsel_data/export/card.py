@@ -190,9 +190,10 @@ def hf_loading(doc, splits: list) -> list:
 
 
 def card_text(root: str, doc, export: str = "card", splits=None, yaml_extra: dict | None = None,
-              figure: str | None = None, stats: dict | None = None) -> str:
+              figure: str | None = None, stats: dict | None = None, sections: list | None = None) -> str:
     """The card of the dataset ``root`` (``doc``: its DatasetDoc) for an export of kind
-    ``export`` holding ``splits`` (default: all); ``figure``: the statistics PNG beside it."""
+    ``export`` holding ``splits`` (default: all); ``figure``: the statistics PNG beside it;
+    ``sections``: lines of Markdown the export adds (what its own files hold)."""
     splits = list(splits) if splits is not None else list(doc.splits)
     stats = dataset_stats(root) if stats is None else stats
     cfg = doc.config
@@ -223,6 +224,7 @@ def card_text(root: str, doc, export: str = "card", splits=None, yaml_extra: dic
             f"- clips: {corpus}", f"- rooms: {rooms}", ""]
     if export == "hf":
         out += hf_loading(doc, splits)
+    out += list(sections or ())
     out += ["## Sources and licences", "",
             "| part | what | licence |", "|---|---|---|",
             f"| clips | {corpus} | {corpus_licence} |", f"| rooms | {rooms} | {rooms_licence} |",

@@ -34,7 +34,7 @@ from ..corpus.seld import SETS, FRAME_HOP, Labels, Recording, Source, find_recor
 from ..errors import ConfigError
 from ..core.files import check_input
 from ..receivers import receiver
-from ..scene.queries import RELATIONS, Truth, check, composite_wordings, margins
+from ..scene.queries import RELATIONS, Truth, check, composite_wordings, held, margins
 from ..scene.recipe import BUILTIN_DEMO_RECORDED, plan_roots
 from ..scene.recorded import RecordedRecipe, SourceRef
 
@@ -223,12 +223,6 @@ def recorded_truth(sources) -> Truth:
     """What the relations are decided on: activity as labelled, and each source's direction
     and distance held from its nearest labelled frame where it is not labelled (a recording
     says where a source is only while it sounds). Levels: unknown (NaN)."""
-    def held(a: np.ndarray) -> np.ndarray:
-        ok = np.flatnonzero(np.isfinite(a))
-        if not len(ok):
-            return a
-        return a[ok[np.abs(np.arange(len(a))[:, None] - ok[None, :]).argmin(axis=1)]]  # ties: the earlier frame
-
     el = [held(s.elevation) if np.isfinite(s.elevation).any() else np.where(np.isfinite(held(s.azimuth)), 0.0, np.nan)
           for s in sources]
     return Truth(level_db=np.full(len(sources), np.nan), active=np.array([s.active for s in sources]),

@@ -197,11 +197,30 @@ RELATIONS = {
 }
 WORDINGS = {r: spec.wordings for r, spec in RELATIONS.items()}
 UNITS = {r: spec.unit for r, spec in RELATIONS.items()}
+# each margin key's default (config/schema.py declares the keys with these): a finished
+# dataset's stored config names a margin only when it was set (the keys are ``new``)
+DEFAULT_MARGINS = {"margin_level": 3.0, "margin_distance": 0.5, "margin_onset": 0.5, "margin_motion": 10.0,
+                   "margin_solo": 1.0}
 
 
 def margins(scene_config) -> dict:
     """{relation: margin} of a config's ``scene`` section (each spec's ``margin_key``)."""
     return {r: getattr(scene_config, spec.margin_key) for r, spec in RELATIONS.items()}
+
+
+def stored_margins(scene: dict) -> dict:
+    """{relation: margin} of a stored config's ``scene`` section (``dataset.json``: a plain
+    dict, naming the margins that were set)."""
+    return {r: float(scene.get(spec.margin_key, DEFAULT_MARGINS[spec.margin_key])) for r, spec in RELATIONS.items()}
+
+
+def held(a: np.ndarray) -> np.ndarray:
+    """A label row [F] with each NaN frame given the value of its nearest labelled frame
+    (ties: the earlier): a recording says where a source is only while it sounds."""
+    ok = np.flatnonzero(np.isfinite(a))
+    if not len(ok) or len(ok) == len(a):
+        return a
+    return a[ok[np.abs(np.arange(len(a))[:, None] - ok[None, :]).argmin(axis=1)]]
 
 
 def check(relation: str, truth: Truth, others, margin: float) -> dict | None:
