@@ -61,7 +61,7 @@ def _hold(lock_file: str) -> subprocess.Popen:
     return holder
 
 
-@pytest.mark.parametrize("fmt", ["dcase", "webdataset", "hf", "lhotse", "recipes", "card"])
+@pytest.mark.parametrize("fmt", ["dcase", "webdataset", "hf", "lhotse", "recipes", "card", "captions", "qa"])
 def test_a_second_export_into_one_out_is_refused_and_changes_nothing(fmt, tiny, tmp_path, tsel_cli):
     out = tmp_path / "ex"
     tsel_cli.ok("export", "dcase", tiny, "--out", out, "--quiet", "--split", "test")
