@@ -436,7 +436,7 @@ class CommandOptions:
     fail_under: float = option(0.0, "`tsel verify` fails under this agreement rate", unit="(0-1)", ge=0.0, le=1.0)
     scenes: int = option(24, "scenes of `tsel inspect --sheet`", unit="scenes", ge=1, le=10_000)
     rooms: int = option(2, "rooms of `tsel bank build`", unit="rooms", ge=1, le=1000)
-    step: float = option(5.0, "azimuth step along a ring of `tsel bank build`", unit="deg", gt=0.0, le=360.0)
+    step: float = option(5.0, "azimuth step along a ring of `tsel bank build`", unit="deg", gt=0.0, le=90.0)
     rir_seconds: float = option(0.0, "RIR length of `tsel bank build`", unit="s", gt=0.0, le=60.0)
     batch: int = option(256, "captions per batch of `tsel corpus embed`", unit="captions", ge=1, le=1_000_000)
     shard_bytes: int = option(500_000_000, "an export's `--shard-size`", unit="bytes", ge=1000, le=10**13)
