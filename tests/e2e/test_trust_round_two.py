@@ -692,3 +692,17 @@ def test_a_corpus_copied_from_macos_loses_no_clip(disk, listed, demo_corpus, tmp
     (corpus / "train.csv").write_text(manifest.replace(first, in_manifest), encoding="utf-8")
     report = json.loads(tsel_cli.ok("check", "--preset", "demo", "--corpus-dir", corpus, "--no-plan", "--json"))
     assert report["facts"]["splits"]["train"]["missing"] == 0, report["warnings"]
+
+
+def test_a_release_clip_is_found_in_a_copy_that_spells_its_name_the_other_way(tmp_path):
+    """A rebuild (`generate --from`) looks a clip up at the release's name first."""
+    import hashlib
+
+    from tsel_data.job.relocate import locate_clips
+
+    nfc, nfd = (unicodedata.normalize(f, "café-oiseau") for f in ("NFC", "NFD"))
+    (tmp_path / "audio").mkdir()
+    (tmp_path / "audio" / f"{nfd}.wav").write_bytes(b"RIFF-bytes")
+    entry = {"clip_id": "x", "sha256": hashlib.sha256(b"RIFF-bytes").hexdigest(), "bytes": 10}
+    found = locate_clips({f"audio/{nfc}.wav": entry}, str(tmp_path), cfg=None)[f"audio/{nfc}.wav"]
+    assert found.same and found.how == "name" and os.path.basename(found.path) == f"{nfd}.wav"
