@@ -7,7 +7,11 @@ record that holds ``Role.TARGET`` writes ``"target"``.
 """
 from __future__ import annotations
 
+import re
 from enum import StrEnum
+
+# a split's name: it names a folder of the dataset and of its exports, so a plain name only
+SPLIT_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 
 
 class ReceiverModel(StrEnum):

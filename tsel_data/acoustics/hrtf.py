@@ -81,6 +81,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.files import check_input
 from ..core.geometry import sph_to_cart
 from ..core.h5str import as_str
 from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
@@ -159,6 +160,7 @@ def read_hrtf(path, fs: float | None = None) -> Hrtf:
     path = Path(path)
     if fs is not None and not (np.isfinite(fs) and fs > 0):
         raise ConfigError(f"{path}: HRTF sampling rate {fs!r} is not a positive number of Hz; give the scene's fs")
+    check_input(path, ConfigError, "give the SOFA HRTF file itself")
     if not path.is_file():
         raise ConfigError(f"HRTF file {path} not found; check the path")
     with open_sofa(path, ConfigError, f"cannot be read as netCDF-4/HDF5); {_HOW}") as f:

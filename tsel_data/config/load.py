@@ -13,9 +13,10 @@ from dataclasses import fields
 from importlib import resources
 from typing import Any
 
+from ..core.files import check_input
 from ..errors import ConfigError
 from ..scene.distributions import Dist
-from .rules import Where, at, check_raw_config, validate_config
+from .rules import MAX_DEPTH, Where, at, check_raw_config, validate_config
 from .schema import HARDWARE_PROFILES, SECTIONS, TOP_FIELDS, TOP_KEYS, Config, SplitConfig
 
 BUILTIN_PREFIX = "builtin:"  # corpus.dir / room.bank values the run builds itself
@@ -159,6 +160,7 @@ def _split_names(layers) -> list[str]:
 
 
 def _read_user_file(path: str) -> dict:
+    check_input(path, ConfigError, "give the TOML config file itself")
     if not os.path.isfile(path):
         raise ConfigError(f"config file not found: {path}")
     try:
@@ -183,10 +185,40 @@ def _read_user_file(path: str) -> dict:
 
 
 def _parse_toml(text: str, where: str) -> dict:
+    _check_depth(text, where)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{where}: not valid TOML: {e}") from None
+    except RecursionError:  # what _check_depth's scan missed
+        raise ConfigError(f"{where}: values nested too deeply; no config value nests more than {MAX_DEPTH} "
+                          f"levels") from None
+
+
+def _check_depth(text: str, where: str) -> None:
+    """ConfigError when brackets or braces outside strings nest deeper than MAX_DEPTH:
+    the TOML parser would recurse until Python stops it (a 5,000-deep list)."""
+    depth = deepest = 0
+    quote = ""
+    escaped = False
+    for c in text:
+        if quote:
+            if escaped:
+                escaped = False
+            elif c == "\\" and quote == '"':
+                escaped = True
+            elif c == quote:
+                quote = ""
+        elif c in "\"'":
+            quote = c
+        elif c in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif c in "]}":
+            depth -= 1
+    if deepest > MAX_DEPTH:
+        raise ConfigError(f"{where}: values nested {deepest} levels deep; no config value nests more than "
+                          f"{MAX_DEPTH} (array.capsules is [[x, y, z], ...]): check the brackets")
 
 
 def _parse_override(ov: str) -> dict:
@@ -194,7 +226,11 @@ def _parse_override(ov: str) -> dict:
         raise ConfigError(f"--set {ov!r}: expected section.key=value, e.g. --set room.rt60=0.6")
     key, value = ov.split("=", 1)
     try:
+        _check_depth(value, f"--set {key.strip()}")
         parsed = tomllib.loads(f"v = {value}")["v"]
+    except RecursionError:
+        raise ConfigError(f"--set {key.strip()}: values nested too deeply; no config value nests more than {MAX_DEPTH} "
+                          f"levels") from None
     except tomllib.TOMLDecodeError:
         parsed = value  # a bare word: treat as a string
     out: dict = {}

@@ -15,22 +15,23 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from dataclasses import fields
 
 from ..acoustics.metrics import sabine_min_rt60
-from ..choices import LevelModel, NoiseKind, Pairing, QueryType, RecordedSet, Relation, SimilarityMeasure, values
+from ..choices import (SPLIT_NAME, LevelModel, NoiseKind, Pairing, QueryType, RecordedSet, Relation, SensorLevel,
+                       SimilarityMeasure, values)
 from ..errors import ConfigError, GeometryError
 from ..receivers import RECEIVERS, canonical, receiver
 from ..scene.distributions import Dist
 from ..scene.hardware import read_response
 from ..scene.queries import RELATIONS
 from .receiver import array_poses, receiver_problems
-from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
+from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig, declared
 
 MAX_NUMBER = 1e9  # larger config numbers are typos (seeds excepted)
+MAX_DEPTH = 16  # tables and lists nest no deeper in a config (array.capsules: 3 levels under the root)
+MAX_NOISE_OVER_TARGET_DB = 20.0  # every noise's SNR is at least -20 dB (schema: noise.*_snr)
 RELATION_NAMES = values(Relation)
-SPLIT_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 
 
 class Where(str):
@@ -94,17 +95,20 @@ def check_raw_config(raw, where: str = "config") -> None:
     _finite(raw, where, "")
 
 
-def _finite(x, where: str, key: str) -> None:
+def _finite(x, where: str, key: str, depth: int = 0) -> None:
+    if depth > MAX_DEPTH:
+        raise ConfigError(f"{at(where, key)}: {key or 'config'} holds values nested more than {MAX_DEPTH} levels "
+                          f"deep; no config value nests so deep: check the brackets")
     if isinstance(x, dict):
         for k, v in x.items():
             if not isinstance(k, str) or any(ord(c) < 32 or ord(c) == 127 for c in k):
                 shown = f"{key}.{k!r}" if key else repr(k)
                 raise ConfigError(f"{where}: config key {shown} is not a plain name (control characters or not a "
                                   f"string); keys are names such as room.rt60")
-            _finite(v, where, f"{key}.{k}" if key else str(k))
+            _finite(v, where, f"{key}.{k}" if key else str(k), depth + 1)
     elif isinstance(x, (list, tuple)):
         for v in x:
-            _finite(v, where, key)
+            _finite(v, where, key, depth + 1)
     elif isinstance(x, bool):
         return
     elif isinstance(x, (int, float)):
@@ -192,10 +196,25 @@ def _within(v: float, m: dict) -> bool:
 
 
 def _condition(m: dict) -> str:
-    parts = [f"{op} {m[k]:g}" for k, op in _BOUNDS if m.get(k) is not None]
+    parts = [f"{op} {m[k]:g}" if isinstance(m[k], float) else f"{op} {m[k]}" for k, op in _BOUNDS
+             if m.get(k) is not None]
     unit = f" {m['unit']}" if m.get("unit") else ""
     why = f" ({m['why']})" if m.get("why") else ""
     return " and ".join(parts) + unit + why
+
+
+def option_problem(key: str, value) -> str | None:
+    """Why ``value`` cannot be the setting ``key`` (a config key or a command option of
+    schema.CommandOptions): not a number, not finite, a fraction for a count, or out of
+    the declared bounds ("must be > 0 and <= 180 deg"); None when it can."""
+    m = declared(key).metadata
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return f"must be a number ({_condition(m)})"
+    if not math.isfinite(value):
+        return f"must be a finite number, {_condition(m)}"
+    if not _within(value, m):
+        return f"must be {_condition(m)}"
+    return None
 
 
 # --- across fields ------------------------------------------------------------------------------
@@ -367,6 +386,16 @@ def _noise_problems(cfg: Config, where: str) -> list[ConfigError]:
         out.append(ConfigError(f"{at(where, 'scene.levels')}: same-kind distractors (composite queries) are told "
                                f"apart by their TIR, which scene.levels = \"distance\" does not set; use "
                                f"scene.levels = \"tir\" with them"))
+    sensor = cfg.noise.sensor_level.bounds
+    if cfg.noise.sensor == SensorLevel.DBFS and sensor is not None and \
+            sensor[1] > min(0.0, cfg.audio.target_level_dbfs + MAX_NOISE_OVER_TARGET_DB):
+        # the other noises are set by an SNR of at least -20 dB; sensor noise in dBFS is held to the same
+        top = min(0.0, cfg.audio.target_level_dbfs + MAX_NOISE_OVER_TARGET_DB)
+        out.append(ConfigError(f"{at(where, 'noise.sensor_level', 'noise.sensor')}: noise.sensor_level up to "
+                               f"{sensor[1]:g} dBFS would bury the target at audio.target_level_dbfs = "
+                               f"{cfg.audio.target_level_dbfs:g} dBFS (more than {MAX_NOISE_OVER_TARGET_DB:g} dB above "
+                               f"it, as no other noise may be); keep it at most {top:g} dBFS, e.g. "
+                               f"[\"uniform\", -90.0, -70.0]"))
     return out
 
 

@@ -30,6 +30,7 @@ import re
 import numpy as np
 
 from ..errors import ConfigError
+from ..core.files import check_input
 from .lexicon import BROAD, NAMED, concepts, weight
 
 _WORD = re.compile(r"[a-z0-9']+")
@@ -140,6 +141,7 @@ def same_kind(query_events: frozenset, target_events: frozenset, other_events: f
 def load_embeddings(path: str) -> dict[str, np.ndarray]:
     """caption -> unit vector from an ``.npz`` with ``captions`` [N] str and ``vectors``
     [N, D] (ConfigError naming the file on any problem)."""
+    check_input(path, ConfigError, "give the .npz of `tsel corpus embed`")
     try:
         with np.load(path, allow_pickle=False) as z:
             caps, vecs = z["captions"], z["vectors"]

@@ -19,7 +19,7 @@ from ..choices import Additive, LevelModel, Pairing, QueryType, Role, Scenario, 
 from ..config import Config, rooms_without_bank
 from ..config.receiver import array_pose, hrtf_problem
 from ..core.progress import bar
-from ..corpus.ambience import find_ambience
+from ..corpus.ambience import check_sounds, find_ambience
 from ..corpus.captions import CaptionIndex, caption_sets, load_embeddings, max_similarity, same_kind, sound_events
 from ..corpus.clip import Clip
 from ..errors import TselError
@@ -100,17 +100,24 @@ def prepare_views(cfg: Config, home: Layout, workers: int = 1,
             raise problem
     corpus_dir = resolve_corpus_dir(cfg, home.demo_corpus)
     catalog = build_catalog(cfg, corpus_dir, workers=workers, progress=progress)
-    bank_path = resolve_bank(bank_request(cfg), home.demo_bank)
+    return catalog, catalog_views(cfg, catalog.clips, home)
+
+
+def catalog_views(cfg: Config, clips: dict, home: Layout) -> dict[str, CatalogView]:
+    """Per split of ``clips`` ({split: [Clip]}), the :class:`CatalogView` its scenes are
+    planned from: the resolved bank, the roots, the ambience, the caption index. The one
+    way a view is made, for ``tsel generate`` and ``tsel check`` alike."""
+    bank_path = resolve_bank(bank_request(cfg), home.demo_bank) if cfg.room.bank else None
     roots = plan_roots(cfg, home)
     ambience = find_config_ambience(cfg)
-    views = {split: CatalogView(clips, bank_path, roots, ambience) for split, clips in catalog.clips.items()}
-    if extended_queries(cfg):
+    views = {split: CatalogView(split_clips, bank_path, roots, ambience) for split, split_clips in clips.items()}
+    if extended_queries(cfg):  # built once here, not in every planning process
         for split in cfg.active_splits():
             if split in views:
                 views[split].caption_index(cfg.scene.similarity, cfg.corpus.caption_embeddings)
                 if same_kind_possible(cfg):
                     views[split].sound_events()
-    return catalog, views
+    return views
 
 
 def ambience_problems(cfg: Config) -> list[TselError]:
@@ -137,8 +144,11 @@ def find_config_ambience(cfg: Config):
     if not cfg.noise.ambience:
         return None
     pose = array_pose(cfg)
-    return find_ambience(os.path.abspath(os.path.expanduser(cfg.noise.ambience)), pose.n_channels, cfg.audio.fs,
-                         pose.format, scene_samples=int(round(cfg.audio.duration * cfg.audio.fs)))
+    found = find_ambience(os.path.abspath(os.path.expanduser(cfg.noise.ambience)), pose.n_channels, cfg.audio.fs,
+                          pose.format, scene_samples=int(round(cfg.audio.duration * cfg.audio.fs)))
+    for rec in found.recordings:
+        check_sounds(rec.path, cfg.audio.fs)
+    return found
 
 
 def bank_request(cfg: Config) -> BankRequest:

@@ -42,6 +42,8 @@ from .noise import noise_image, noise_gain, noise_level_dbfs
 # The mix's peak is kept below full scale, so 16-bit exports do not clip: if the mixed
 # scene would exceed it, every source is scaled down together (levels.normalisation_db).
 PEAK_LIMIT = 0.99
+# an image this far below its dry clip (-200 dB) went through RIRs that are damage, not a room
+SILENT_IMAGE = 1e-10
 
 
 def convolve(signals, rirs, n_out: int, out=None) -> np.ndarray:
@@ -252,7 +254,8 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
     level_ch = recipe.array.spec.level_slice()  # the "omni energy": W for FOA, every capsule of an array
     levels = np.array([active_rms(images[k, level_ch], active[k], fs, hop) for k in range(len(images))])
     for k, s in enumerate(recipe.sources):
-        if not np.isfinite(levels[k]) or (levels[k] <= 0 and np.max(np.abs(dry[k])) > 0):
+        sounding = float(np.max(np.abs(dry[k])))
+        if not np.isfinite(levels[k]) or (levels[k] <= SILENT_IMAGE * sounding and sounding > 0):
             _blame_rirs(recipe, k)
         if levels[k] <= 0:
             # a silent source would leave a query describing nothing audible
@@ -352,6 +355,10 @@ def _mixed_noise(recipe: SceneRecipe, item, target: np.ndarray, level_ch) -> "Mi
     raw = [noise_image(item, p, recipe.fs, recipe.n_samples, recipe.duration, recipe.label_hop,
                        recipe.activity_threshold_db) for p in poses]
     g = noise_gain(item, target, raw[0], level_ch)
+    if g == 0 and item.snr_db is not None:  # silence at an SNR: the record would say none was heard
+        what = f"ambience {item.file} from sample {item.offset}" if item.file else f"its {item.kind} noise"
+        raise AudioError(f"{recipe.scene_id}: {what} is silent in the scene; no gain puts it at {item.snr_db:g} dB: "
+                         f"replace the recording (or cut its silent stretches), or set noise.{item.kind} off")
     scaled = tuple(r * np.float32(g) for r in raw)
     snr = None
     if item.snr_db is not None and g > 0:
@@ -386,7 +393,8 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
         A source is silent in the part of its clip the scene uses.
     """
     files = (roots or Roots()).resolve(recipe)
-    parts = mix_parts(files)
+    with np.errstate(over="ignore", invalid="ignore"):  # what overflows is refused before it is written (store/sanity)
+        parts = mix_parts(files)
     active, gains, norm, levels, peak, mix = parts.active, parts.gains, parts.norm, parts.levels, parts.peak, parts.mix
     rt60_measured = parts.rt60_measured
 
@@ -468,7 +476,7 @@ def _blame_rirs(recipe: SceneRecipe, k: int) -> None:
         raise BankError(f"{recipe.bank.path}: room {b.room} trajectory {b.trajectory}, RIRs {list(b.indices)[:6]}"
                         f"{'...' if len(b.indices) > 6 else ''}: NaN, Inf or all zero (scene {recipe.scene_id}, "
                         f"source {k}); the bank is damaged: re-import it or drop the room")
-    raise BankError(f"{recipe.scene_id}: source {k}'s simulated RIRs are NaN or silent (room {recipe.room}); "
+    raise BankError(f"{recipe.scene_id}: source {k}'s simulated RIRs are NaN or all but silent (room {recipe.room}); "
                     f"this is a simulator failure: report it with the scene's recipe")
 
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..choices import Role, Scenario, Spatial, values
+from ..core.files import check_input
 from ..core.geometry import Room, interpolate_positions, room_to_array
 from ..core.jsonable import JsonFields, key, rows, unset
 from ..errors import DatasetError, GeometryError
@@ -430,6 +431,7 @@ def read_plan(path) -> list[SceneRecipe]:
     """Every recipe of a ``plan/{split}.jsonl`` file, in order (DatasetError naming the
     line when one is damaged)."""
     out = []
+    check_input(path, DatasetError, "plan again into a new --out")
     try:
         with open(path, "rb") as f:
             for n, raw in enumerate(f, 1):
@@ -467,6 +469,6 @@ def recipe_from_line(path, n: int, raw: bytes | str) -> SceneRecipe:
     line when it is damaged)."""
     try:
         return recipe_from_dict(json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw))
-    except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
+    except (ValueError, KeyError, TypeError, IndexError, AttributeError, RecursionError) as e:
         raise DatasetError(f"{path}:{n}: damaged scene recipe ({type(e).__name__}: {str(e)[:80]}); plan again "
                            f"into a new --out") from None

@@ -169,6 +169,21 @@ class ArrayRecord(JsonFields, _JsonMapping):
                    pose.baffle, pose.hrtf, pose.interpolation, hardware)
 
 
+def _number(v) -> bool:
+    return v is None or isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _acoustics(v: dict | None) -> dict | None:
+    """A source's ``acoustics`` as read: each descriptor a number or null, the octave
+    bands an object of them (ValueError naming the key otherwise: a damaged record)."""
+    for name, x in (v or {}).items():
+        bands = x if name == "t30_bands_s" and isinstance(x, dict) else {name: x}
+        bad = next((b for b, y in bands.items() if not _number(y)), None)
+        if bad is not None:
+            raise ValueError(f"key 'acoustics' holds {name} = {str(x)[:40]!r}, not a number")
+    return v
+
+
 def _no_pairing(r) -> bool:
     return r.pairing is None  # extended queries only: default records keep format 1's bytes
 
@@ -207,7 +222,7 @@ class SourceRecord(JsonFields, _JsonMapping):
     caption_similarity: float | None = key(None, omit=_no_pairing)
     power_db: float | None = key(None, omit=unset("power_db"))  # levels that follow distance only
     # with output.descriptors (absent otherwise): acoustic/descriptors.py, scene/motion.py
-    acoustics: dict | None = key(None, omit=unset("acoustics"))
+    acoustics: dict | None = key(None, omit=unset("acoustics"), decode=_acoustics)
     motion: str | None = key(None, omit=unset("motion"))
 
     @classmethod

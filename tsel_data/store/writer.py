@@ -28,6 +28,7 @@ from .integrity import FileSeal, Seal
 from .layout import Layout, shard_names
 from .layout import DESCRIPTORS_GROUP, HARDWARE_GROUP, NOISE_GROUP, RECEIVERS_GROUP
 from .records import LABEL_KEYS
+from .sanity import check_scene
 from .scene import Scene
 
 # Space a write needs beyond its bytes (HDF5 metadata, the file system), as a fraction:
@@ -156,10 +157,12 @@ class ShardWriter:
         return self
 
     def add(self, scene: Scene) -> None:
-        """Write one scene (the shard's scenes in order)."""
+        """Write one scene (the shard's scenes in order); a scene unfit to be written (NaN
+        samples, levels far from its config's: store/sanity.py) stops the shard first."""
         i = len(self.kept)
         if i >= self.n:
             raise ValueError(f"shard {self.h5_rel} holds {self.n} scenes; got one more")
+        check_scene(scene)
         try:
             others = scene.receivers or {}
             size = scene.audio.nbytes + sum(a.nbytes for a, _ in others.values())

@@ -34,7 +34,7 @@ def find_scene(root: str, ref: str, split: str | None = None, receiver: str | No
             raise TselError(f"scene {ref!r}: expected SPLIT/INDEX with an integer index, e.g. test/0") from None
         with open_dataset(root, sp, unfinished=True, receiver=receiver) as ds:
             try:
-                return ds[ds.position_of(i) if i >= 0 else i]
+                return ds.finite(ds[ds.position_of(i) if i >= 0 else i])
             except IndexError:
                 if not ds.doc.finished and 0 <= i < ds.doc.planned.get(sp, 0):
                     raise DatasetError(f"scene {ref!r} is not rendered yet (its shard is unfinished; {len(ds)} "
@@ -45,7 +45,7 @@ def find_scene(root: str, ref: str, split: str | None = None, receiver: str | No
     for sp in order:
         with open_dataset(root, sp, unfinished=True, receiver=receiver) as ds:
             if ref in ds:
-                return ds.by_id(ref)
+                return ds.finite(ds.by_id(ref))
     where = f"split {split!r}" if split else f"splits {', '.join(splits)}"
     raise DatasetError(f"no scene {ref!r} in {where} of {root}; give a scene id or SPLIT/INDEX such as "
                        f"{splits[0]}/0")

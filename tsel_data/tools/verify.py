@@ -489,7 +489,7 @@ def verify_dataset(root: str, splits=None, tolerance: float = 20.0, min_frames: 
             res = []
             with bar(n, f"verify {split}", "scene", progress) as b:
                 for i in range(n):
-                    res.append(verify_scene(ds[i], tolerance, min_frames))
+                    res.append(verify_scene(ds.finite(ds[i]), tolerance, min_frames))
                     b.update()
         tested = [r for r in res if r["status"] != "untested"]
         errors = [src["error"] for r in tested for src in r["sources"]]
