@@ -27,6 +27,7 @@ PUBLIC_MODULES = {
     "onthefly": "job.onthefly",
     "features": "dsp.features",
     "handmade": "job.handmade",
+    "augment": "tools.augment",
 }
 
 

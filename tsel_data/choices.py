@@ -7,7 +7,11 @@ record that holds ``Role.TARGET`` writes ``"target"``.
 """
 from __future__ import annotations
 
+import re
 from enum import StrEnum
+
+# a split's name: it names a folder of the dataset and of its exports, so a plain name only
+SPLIT_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 
 
 class ReceiverModel(StrEnum):
@@ -44,6 +48,15 @@ class SensorLevel(StrEnum):
     NONE = "none"
     DBFS = "dbfs"
     SNR = "snr"
+
+
+class HardwareProfile(StrEnum):
+    """``hardware.profile``: the microphones as built, typical values for every key left unset
+    (config/schema.py ``HARDWARE_PROFILES``), or none (ideal capsules unless keys are set)."""
+
+    NONE = "none"
+    MEMS = "mems"
+    MEASUREMENT = "measurement"
 
 
 class SegmentRule(StrEnum):
@@ -107,7 +120,8 @@ class Role(StrEnum):
 
 
 class Spatial(StrEnum):
-    """How a source is rendered: through the room, or added to every channel unspatialised."""
+    """How a source is rendered: through the room, added to every channel unspatialised, or as a
+    diffuse field at the array (``scene.additive = "diffuse"``)."""
 
     DIRECTIONAL = "directional"
     ADDITIVE = "additive"

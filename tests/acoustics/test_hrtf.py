@@ -291,3 +291,21 @@ def test_a_sofa_file_written_by_sofar_reads_the_same(tmp_path, ref):
     assert got.fs == ref.fs and got.name == "sphere" and got.lead == ref.lead
     assert np.allclose(got.directions, ref.directions, atol=1e-12)
     assert np.array_equal(got.irs, ref.irs)
+
+
+def test_onsets_are_the_heads_delays_and_aligned_irs_line_up(ref):
+    """Each IR's onset (its lag behind its minimum-phase version) follows the spherical
+    head's Woodworth delay at its ear within a sample, over every direction; the aligned IRs
+    (onsets removed) all peak within a sample of one another."""
+    from support.hrtf import woodworth_delays
+    from tsel_data.acoustics.hrtf import aligned_hrirs, hrir_onsets
+
+    on = hrir_onsets(ref)
+    assert on.shape == (len(ref.directions), 2)
+    excess = on - woodworth_delays(ref.directions) * ref.fs  # the common part: the file's onset, less the lead
+    assert np.ptp(excess) < 1.0, np.ptp(excess)
+    aligned, lead = aligned_hrirs(ref)
+    assert aligned.shape == ref.irs.shape and lead > 0
+    peaks = np.argmax(np.abs(aligned), axis=-1)
+    assert np.ptp(peaks) <= 1, np.unique(peaks)
+    assert np.ptp(np.argmax(np.abs(ref.irs), axis=-1)) > 20  # as measured they do not (the ITD alone is ~30)

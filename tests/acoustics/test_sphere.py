@@ -144,14 +144,17 @@ def test_bad_geometry_is_refused():
 
 
 # --- impulse responses -------------------------------------------------------------------
-@pytest.mark.parametrize("fs", [24000, 48000])
-def test_filters_match_the_transfer_function(fs):
-    """Each row, delayed back by ``lead``, is H within 0.5 dB and 3° up to 0.8 · fs/2; its
-    DC gain is 1; rows between the tabulated angles (linear in θ) stay within 0.5 dB."""
-    flt = rigid_sphere_filters(fs, R)
+@pytest.mark.parametrize("fs, distance", [(24000, None), (48000, None), (24000, 0.25), (24000, 1.0)])
+def test_filters_match_the_transfer_function(fs, distance):
+    """Each row, delayed back by ``lead``, is H within 0.5 dB and 3° up to 0.8 · fs/2 (a
+    plane wave, or a point source at ``distance``); its DC gain is H(0, θ) (1 for a plane
+    wave); rows between the tabulated angles (linear in θ) stay within 0.5 dB."""
+    flt = rigid_sphere_filters(fs, R, distance=distance)
     table = flt.table
     assert table.dtype == np.float64 and table.shape[0] == 181
-    np.testing.assert_allclose(table.sum(axis=1), 1.0, atol=1e-12)
+    static = rigid_sphere_transfer([0.0], np.cos(flt.thetas), R, distance)[0].real
+    np.testing.assert_allclose(table.sum(axis=1), static, atol=1e-12)
+    assert distance is None or static[0] > 1.02  # a near source: the near side above the centre at DC
     n_fft = 2048
     f = np.fft.rfftfreq(n_fft, 1.0 / fs)
     f = f[f <= 0.8 * fs / 2]
@@ -159,7 +162,7 @@ def test_filters_match_the_transfer_function(fs):
 
     def ratio(rows, cos_theta):
         spec = np.fft.rfft(rows, n=n_fft, axis=-1)[:, : len(f)] * back
-        return spec / rigid_sphere_transfer(f, cos_theta, R).T
+        return spec / rigid_sphere_transfer(f, cos_theta, R, distance).T
 
     q = ratio(table, np.cos(flt.thetas))
     assert np.abs(db(q)).max() < 0.5

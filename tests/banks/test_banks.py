@@ -324,10 +324,11 @@ def test_build_demo_bank_cli(tmp_path):
 
 
 @pytest.mark.parametrize("args,needle", [
-    (["--rt60", "0.8,0.3"], "0 < lo <= hi"), (["--fs", "0"], "below 8000 Hz"), (["--step", "400"], "in (0, 90]"),
-    (["--demo", "--step", "3"], "drop --step or --demo"), (["--rir-seconds", "-1"], "at least one sample"),
+    (["--rt60", "0.8,0.3"], "0 < lo <= hi"), (["--fs", "0"], "must be >= 8000 and <= 192000 Hz"),
+    (["--step", "400"], "must be > 0 and <= 90 deg"),
+    (["--demo", "--step", "3"], "drop --step or --demo"), (["--rir-seconds", "-1"], "must be > 0 and <= 60 s"),
     (["--demo", "--rir-seconds", "0.00001"], "at least one sample"), (["--distances", "nan"], "must be finite"),
-    (["--side", "-1"], "side -1.0 m must be positive"),
+    (["--side", "-1"], "must be > 0 and <= 10 m, got -1.0"),
 ])
 def test_build_rejects_bad_options(tmp_path, args, needle):
     small = [] if "--demo" in args else ["--rooms", "1"]

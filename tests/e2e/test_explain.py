@@ -61,7 +61,7 @@ def test_set_errors_name_the_set_not_the_preset(capsys, tmp_path, override, need
 def test_preset_values_are_still_blamed_on_the_preset(capsys, tmp_path):
     (tmp_path / "mine.toml").write_text("[room]\nrt60 = -1.0\n")
     line = one_line_error(capsys, "check", "--preset", "demo", "--config", tmp_path / "mine.toml", "--no-plan")
-    assert line.startswith(f"error: {tmp_path / 'mine.toml'}: room.rt60 must be > 0 s")
+    assert line.startswith(f"error: {tmp_path / 'mine.toml'}: room.rt60 must be > 0 and <= 20 s, got -1.0")
 
 
 def test_impossible_separation_says_the_largest_possible(capsys):

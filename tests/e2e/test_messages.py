@@ -316,7 +316,7 @@ def test_a_fifo_given_as_bank_is_refused_not_read(tsel_cli, tmp_path):
     feed = threading.Thread(target=lambda: open(fifo, "wb").write(b"junk"), daemon=True)
     feed.start()
     try:
-        assert "bank.h5 is not a regular file (a pipe, device or socket)" in tsel_cli.refused("bank", "info", fifo)
+        assert "bank.h5 is not a regular file: it is a FIFO (a named pipe)" in tsel_cli.refused("bank", "info", fifo)
         assert "is not a regular file" in tsel_cli.refused("check", "--preset", "demo-moving", "--bank", fifo,
                                                            "--split", "train=2", "--no-plan")
     finally:

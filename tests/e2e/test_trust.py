@@ -345,7 +345,7 @@ def test_damaged_bank_rirs_are_named_before_any_work(tmp_path, demo_corpus, dama
 
 
 @pytest.mark.parametrize("override,needle", [
-    ("audio.activity_threshold_db=3.0", "activity_threshold_db must be < 0"),
+    ("audio.activity_threshold_db=3.0", "activity_threshold_db must be >= -200 and < 0 dB"),
     ("array.side=0", "array.side must be > 0"),
     ("audio.label_hop=0.00001", "shorter than one sample"),
     ("audio.label_hop=1e-308", "--set audio.label_hop=1e-308: audio.label_hop 1e-308 s is shorter than one sample"),

@@ -275,3 +275,58 @@ def test_embed_command_with_minilm(tmp_path, demo_corpus, small_config):
     vec = load_embeddings(out)
     ix = CaptionIndex([("A dog barks",), ("Barking of a dog",), ("Rain falls steadily",)], "embeddings", vec)
     assert ix.clip_sim(0, 1) > ix.clip_sim(0, 2) + 0.2  # MiniLM: the same sound is closer than another
+
+
+# clips of six kinds whose captions share words across kinds: "rings" (the lexicon's bell)
+# joins telephones and bells, "crowd" applause and murmur, as the audit's two mismatches did
+KINDS = {
+    "phone": ["A telephone rings", "A telephone rings repeatedly", "A ringing telephone", "The phone rings twice"],
+    "bell": ["A bell rings", "A large bell rings slowly", "Church bells ring", "A bell rings and fades"],
+    "applause": ["A crowd applauds", "Applause from a crowd", "A crowd claps and applauds", "An audience applauds"],
+    "murmur": ["A crowd murmurs", "Murmuring of a crowd", "A crowd murmurs quietly", "An audience murmurs"],
+    "dog": ["A dog barks", "A dog is barking", "A small dog barks", "Dogs bark"],
+    "mixed": ["A bell rings and a dog barks", "A telephone rings while a crowd applauds", "A dog barks at a bell",
+              "A crowd murmurs and a phone rings"],
+}
+
+
+def test_sound_events_and_the_same_kind_rule():
+    from tsel_data.corpus.captions import same_kind, sound_events
+
+    phone, bell = sound_events("A telephone rings"), sound_events("A large bell rings slowly")
+    assert phone == {"phone", "bell"} and bell == {"bell"}
+    assert not same_kind(phone, phone, bell)  # a bell does not fit "a telephone rings"
+    assert not same_kind(bell, bell, phone)  # nor a telephone "a bell rings": it names a phone too
+    assert same_kind(phone, phone, sound_events(["A ringing telephone", "The phone rings twice"]))
+    assert not same_kind(sound_events("A crowd applauds"), sound_events("A crowd applauds"),
+                         sound_events("A crowd murmurs"))
+    assert not same_kind(bell, bell, sound_events("A bell rings and a dog barks"))  # a dog is more than a bell
+    assert same_kind(frozenset(), bell, phone)  # a caption naming no event: the band alone decides
+
+
+def test_same_kind_distractors_are_of_the_targets_kind(tmp_path):
+    """Composite queries over captions that are similar across kinds: every same-kind
+    distractor is a clip of the target's kind (the manifest's own kinds, not similarity)."""
+    from tsel_data.plan.sampler import prepare_views
+    from tsel_data.store.layout import Layout
+
+    rows, kind_of = ["path,caption,id,split"], {}
+    for kind, caps in KINDS.items():
+        for k, cap in enumerate(caps):
+            for copy in range(3):  # three recordings of each caption
+                cid = f"{kind}{k}_{copy}"
+                rows.append(f"{cid}.wav,{cap},{cid},train")
+                kind_of[cid] = kind
+    (tmp_path / "all.csv").write_text("\n".join(rows) + "\n")
+    cfg = load_config(preset="demo", corpus_dir=str(tmp_path), splits={"train": 120},
+                      overrides=['corpus.check="none"', 'corpus.format="plain"', 'splits.train.manifest="all.csv"',
+                                 'scene.query="composite"', 'scene.scenario="two-directional"',
+                                 'splits.val.count=0', 'splits.test.count=0'])
+    _, views = prepare_views(cfg, Layout(str(tmp_path / "home")))
+    seen = 0
+    for recipe in plan_recipes(cfg, "train", views["train"]):
+        kinds = [kind_of[s.clip_id] for s in recipe.sources]
+        for k in recipe.query_plan.matches:
+            seen += 1
+            assert kinds[k] == kinds[0], (recipe.query, [s.captions for s in recipe.sources])
+    assert seen > 60  # most composite draws found a distractor of their kind

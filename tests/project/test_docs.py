@@ -41,3 +41,12 @@ def test_queries_example_runs(capsys):
     exec(compile(code, "queries.md", "exec"), {})
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 4 and any(" relational " in line for line in lines)
+
+
+def test_format_lists_every_spatial_kind():
+    """Every value records write as a source's ``spatial`` is in docs/format.md's table."""
+    from tsel_data.choices import Spatial
+
+    row = next(line for line in (DOCS / "format.md").read_text(encoding="utf-8").splitlines()
+               if line.startswith("| `spatial` |"))
+    assert all(f"`{v.value}`" in row for v in Spatial), row

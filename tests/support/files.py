@@ -41,3 +41,36 @@ def patience(seconds: float) -> float:
     """A wait for an outcome, stretched by how busy the machine is (its load per core, at
     least 1): a test waits for what must happen, never on how fast the machine is now."""
     return seconds * max(1.0, os.getloadavg()[0] / (os.cpu_count() or 1))
+
+
+class Fifo:
+    """``with Fifo(path) as f: run a command``; ``f.opened`` then says whether anything
+    opened the FIFO to read it. A watcher thread lets any reader go at once (it opens the
+    write end, which succeeds only while a reader waits, and closes it: the reader reads
+    the end of the file), so a regression fails its assertion instead of hanging the suite."""
+
+    def __init__(self, path):
+        self.path = os.fspath(path)
+        self.opened = False
+        os.mkfifo(self.path)
+
+    def __enter__(self) -> "Fifo":
+        import threading
+
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._watch, daemon=True)
+        self._thread.start()
+        return self
+
+    def _watch(self) -> None:
+        while not self._done.wait(0.02):
+            try:
+                fd = os.open(self.path, os.O_WRONLY | os.O_NONBLOCK)
+            except OSError:  # no reader (ENXIO), or the FIFO is gone
+                continue
+            self.opened = True
+            os.close(fd)
+
+    def __exit__(self, *exc) -> None:
+        self._done.set()
+        self._thread.join()

@@ -40,7 +40,8 @@ Every malformed file raises one :class:`~tsel_data.errors.ConfigError` line nami
 file, what is wrong and how to fix it.
 
 Directions to measurements (:func:`hrtf_weights`): ``nearest`` (the largest dot
-product) or ``interpolated``: barycentric weights in the triangle of the convex hull of
+product) or ``interpolated`` (blended time-aligned by the receiver: :func:`aligned_hrirs`,
+:func:`hrir_onsets`): barycentric weights in the triangle of the convex hull of
 the measured unit vectors (their spherical Delaunay triangulation) that the direction
 passes through — the gains of vector-base amplitude panning normalised to sum 1
 (V. Pulkki, "Virtual sound source positioning using vector base amplitude panning",
@@ -80,6 +81,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.files import check_input
 from ..core.geometry import sph_to_cart
 from ..core.h5str import as_str
 from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
@@ -158,6 +160,7 @@ def read_hrtf(path, fs: float | None = None) -> Hrtf:
     path = Path(path)
     if fs is not None and not (np.isfinite(fs) and fs > 0):
         raise ConfigError(f"{path}: HRTF sampling rate {fs!r} is not a positive number of Hz; give the scene's fs")
+    check_input(path, ConfigError, "give the SOFA HRTF file itself")
     if not path.is_file():
         raise ConfigError(f"HRTF file {path} not found; check the path")
     with open_sofa(path, ConfigError, f"cannot be read as netCDF-4/HDF5); {_HOW}") as f:
@@ -515,6 +518,73 @@ def _ring_weights(mesh: _Mesh, u, idx, w) -> None:
     idx[ok, 1] = mesh.rep[mesh.order[j[ok]]]
     idx[ok, 2] = idx[ok, 0]
     w[ok, 0], w[ok, 1], w[ok, 2] = 1.0 - t[ok], t[ok], 0.0
+
+
+# --------------------------------------------------------------------------- time-aligned blending
+
+# Samples kept before every aligned IR's onset: its rise and the fractional shift's ringing.
+ALIGN_LEAD_S = 2.5e-4
+
+
+def hrir_onsets(hrtf: Hrtf) -> np.ndarray:
+    """Each IR's onset, float64 [M, 2] samples (at ``hrtf.fs``, into ``hrtf.irs``): its
+    delay behind its own minimum-phase version (the lag of their cross-correlation peak,
+    to 1/16 sample with a parabolic refinement). An HRIR is a minimum-phase response
+    (what the pinna, head and torso do to the level) delayed by the excess-phase part
+    (mostly the travel to the ear), so this is the travel time the ITD is made of: the
+    difference of the two ears' onsets is the ITD. Computed once per object."""
+    got = hrtf._cache.get("onsets")
+    if got is None:
+        got = hrtf._cache.setdefault("onsets", _onsets(hrtf.irs.astype(np.float64)))
+    return got
+
+
+def _onsets(h: np.ndarray) -> np.ndarray:
+    N = h.shape[-1]
+    n = sfft.next_fast_len(8 * N, real=True)
+    H = sfft.rfft(h, n)
+    mag = np.abs(H)
+    floor = mag.max(axis=-1, keepdims=True) * 1e-6  # -120 dB: no log of zero
+    cep = sfft.irfft(np.log(np.maximum(mag, floor)), n)
+    fold = np.zeros_like(cep)  # the cepstrum folded onto its causal half: the minimum-phase version
+    fold[..., 0] = cep[..., 0]
+    fold[..., 1:n // 2] = 2.0 * cep[..., 1:n // 2]
+    if n % 2 == 0:
+        fold[..., n // 2] = cep[..., n // 2]
+    h_min = np.exp(sfft.rfft(fold, n))
+    up = 16
+    xc = sfft.irfft(H * np.conj(h_min), n * up)  # cross-correlation at 1/up sample; lag k at k mod n·up
+    span = N * up  # onsets lie within the IR (and a little before its start, pre-ringing)
+    lags = np.concatenate([np.arange(-span // 4, 0), np.arange(span)])
+    vals = xc[..., lags % (n * up)]
+    k = np.argmax(vals, axis=-1)
+    y1 = np.take_along_axis(vals, k[..., None], -1)[..., 0]
+    y0 = np.take_along_axis(vals, np.clip(k - 1, 0, len(lags) - 1)[..., None], -1)[..., 0]
+    y2 = np.take_along_axis(vals, np.clip(k + 1, 0, len(lags) - 1)[..., None], -1)[..., 0]
+    den = y0 - 2.0 * y1 + y2
+    frac = np.where(np.abs(den) > 1e-300, 0.5 * (y0 - y2) / np.where(np.abs(den) > 1e-300, den, 1.0), 0.0)
+    return (lags[k] + np.clip(frac, -0.5, 0.5)) / up
+
+
+def aligned_hrirs(hrtf: Hrtf) -> tuple[np.ndarray, int]:
+    """The IRs with their onsets removed: (float32 [M, 2, N] each shifted so that its onset
+    (:func:`hrir_onsets`) falls on sample ``lead``, ``lead``): the responses that
+    ``interpolated`` blends, which then differ only in shape, not in delay. A fractional
+    shift by a phase ramp (the IRs are band-limited); computed once per object."""
+    got = hrtf._cache.get("aligned")
+    if got is None:
+        onsets = hrir_onsets(hrtf)
+        lead = int(np.ceil(ALIGN_LEAD_S * hrtf.fs))
+        h = hrtf.irs.astype(np.float64)
+        N = h.shape[-1]
+        n = sfft.next_fast_len(2 * N + lead, real=True)
+        f = np.arange(n // 2 + 1) / n
+        shift = onsets - lead  # samples earlier
+        spec = sfft.rfft(h, n) * np.exp(2j * np.pi * f * shift[..., None])
+        out = sfft.irfft(spec, n)[..., :N].astype(np.float32)
+        out.setflags(write=False)
+        got = hrtf._cache.setdefault("aligned", (out, lead))
+    return got
 
 
 # --------------------------------------------------------------------------- diffuse field

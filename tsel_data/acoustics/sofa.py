@@ -15,13 +15,16 @@ from __future__ import annotations
 import h5py
 import numpy as np
 
+from ..core.files import check_input
 from ..core.geometry import sph_to_cart
 from ..core.h5str import as_str
 
 
 def open_sofa(path, error: type[Exception], why: str):
     """The SOFA file at ``path`` open for reading (an h5py File, to use as a context
-    manager); one ``error`` line "PATH: not a SOFA file (WHY" when it is not HDF5."""
+    manager); one ``error`` line "PATH: not a SOFA file (WHY" when it is not HDF5, and
+    "PATH is not a regular file: it is a FIFO (a named pipe)" when it is no file to read (core/files.py)."""
+    check_input(path, error, "give the SOFA file itself")
     try:
         return h5py.File(path, "r")
     except OSError:

@@ -198,9 +198,9 @@ class SphereFilters:
     """Rigid-sphere impulse responses of a capsule, tabulated in angle (:func:`rigid_sphere_filters`).
 
     ``table`` [n_angles, n_taps] float64 (read-only): row a is the capsule's response to a
-    plane-wave unit impulse arriving from θ_a = a · 180° / (n_angles - 1) off its normal;
-    tap n is the response at time (n - ``lead``) / fs relative to the wave passing the
-    centre. So an image source arriving at the centre at delay d samples (fractional) is
+    plane-wave unit impulse (or one from a point source ``distance`` m from the centre)
+    arriving from θ_a = a · 180° / (n_angles - 1) off its normal; tap n is the response at
+    time (n - ``lead``) / fs relative to the wave passing the centre (as it would with no sphere). So an image source arriving at the centre at delay d samples (fractional) is
     placed by adding the row for its angle (:func:`interpolate_rows`) delayed by d - lead
     samples, e.g. through ism's fractional-delay interpolator.
     """
@@ -210,6 +210,7 @@ class SphereFilters:
     c: float
     lead: int
     table: np.ndarray
+    distance: float | None = None  # the point source's (m), None: a plane wave
 
     @property
     def thetas(self) -> np.ndarray:
@@ -218,28 +219,33 @@ class SphereFilters:
 
 
 def rigid_sphere_filters(fs: float, radius: float, n_angles: int = 181, n_taps: int | None = None,
-                         c: float = SOUND_SPEED) -> SphereFilters:
+                         c: float = SOUND_SPEED, distance: float | None = None) -> SphereFilters:
     """Band-limited impulse responses of a point on a rigid sphere, [n_angles, n_taps] (see
-    :class:`SphereFilters`), cached per (fs, radius, n_angles, n_taps, c).
+    :class:`SphereFilters`), cached per (fs, radius, n_angles, n_taps, c, distance).
 
-    Frequency sampling: H(f, θ) (:func:`rigid_sphere_transfer`, plane wave) times the
+    ``distance`` None: a plane wave; else a point source that far (m) from the centre
+    (Duda & Martens; the response is relative to the free-field pressure at the centre,
+    as the plane wave's, so a near source's DC gain is the potential-flow limit of the
+    module doc, not 1). Frequency sampling: H(f, θ) (:func:`rigid_sphere_transfer`) times the
     delay exp(-j 2π f lead / fs) on a grid of fs / 8192, inverse-transformed (the ideal
     response band-limited at fs/2), then cut to n_taps by a window that is flat over the
     response, [lead - R fs/c, lead + (3π/2) R fs/c] plus 4 samples each side, and fades
     over 16 samples beyond (raised cosine). The support is centred in the taps and the
     window is 1 all over it, so the window leaves the response alone and only fades the
-    slow sinc tails of the band edge at fs/2. Rows are then scaled to unit DC gain (they
-    were within 2e-3 of it).
+    slow sinc tails of the band edge at fs/2. Rows are then scaled to their exact DC gain,
+    H(0, θ) (1 for a plane wave; they were within 2e-3 of it).
 
     ``n_taps`` None: the smallest multiple of 16 that holds the support (1 + 3π/2) R/c
     plus both margins and fades: 64 at 24 kHz and 80 at 48 kHz for R = 4.2 cm, where the
     rows match H within 0.03 dB and 0.2° up to 0.8 · fs/2.
     """
-    return _filters(float(fs), float(radius), int(n_angles), None if n_taps is None else int(n_taps), float(c))
+    return _filters(float(fs), float(radius), int(n_angles), None if n_taps is None else int(n_taps), float(c),
+                    None if distance is None else float(distance))
 
 
-@lru_cache(maxsize=8)
-def _filters(fs: float, radius: float, n_angles: int, n_taps: int | None, c: float) -> SphereFilters:
+@lru_cache(maxsize=32)
+def _filters(fs: float, radius: float, n_angles: int, n_taps: int | None, c: float,
+             distance: float | None = None) -> SphereFilters:
     if n_angles < 2:
         raise ValueError(f"n_angles must be >= 2, got {n_angles}")
     span = _SUPPORT * radius * fs / c  # samples
@@ -252,7 +258,8 @@ def _filters(fs: float, radius: float, n_angles: int, n_taps: int | None, c: flo
     lead = int(round((n_taps - 1) / 2 - (_SUPPORT / 2 - 1.0) * radius * fs / c))
     n_fft = max(_DENSE, 8 * n_taps)
     f = sfft.rfftfreq(n_fft, 1.0 / fs)
-    spec = rigid_sphere_transfer(f, np.cos(np.linspace(0.0, np.pi, n_angles)), radius, c=c).T
+    cos = np.cos(np.linspace(0.0, np.pi, n_angles))
+    spec = rigid_sphere_transfer(f, cos, radius, distance, c=c).T
     spec *= np.exp(-2j * np.pi * f * (lead / fs))
     spec[:, -1] = spec[:, -1].real  # the Nyquist bin of a real response
     h = sfft.irfft(spec, n=n_fft, axis=-1, workers=1)[:, :n_taps]
@@ -260,9 +267,12 @@ def _filters(fs: float, radius: float, n_angles: int, n_taps: int | None, c: flo
     window = np.ones(n_taps)
     window[:taper], window[n_taps - taper:] = fade, fade[::-1]
     h *= window
-    h /= h.sum(axis=1, keepdims=True)
+    if distance is None:
+        h /= h.sum(axis=1, keepdims=True)
+    else:  # a near source's DC gain is not 1: the potential-flow limit
+        h *= (rigid_sphere_transfer([0.0], cos, radius, distance, c=c)[0].real / h.sum(axis=1))[:, None]
     h.setflags(write=False)  # shared by every caller of the cache
-    return SphereFilters(fs=fs, radius=radius, c=c, lead=lead, table=h)
+    return SphereFilters(fs=fs, radius=radius, c=c, lead=lead, table=h, distance=distance)
 
 
 def interpolate_rows(filters: SphereFilters, cos_theta) -> tuple[np.ndarray, np.ndarray]:

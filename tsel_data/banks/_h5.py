@@ -12,6 +12,7 @@ import os
 import h5py
 import numpy as np
 
+from ..core.files import check_input
 from ..errors import BankError
 
 
@@ -32,6 +33,7 @@ class H5Pool:
         key = str(path)
         f = self._files.get(key)
         if f is None or not f.id.valid:
+            check_input(key, BankError, "copy or download the bank again")  # a FIFO keeps HDF5 waiting
             try:
                 f = h5py.File(key, "r")
             except OSError as e:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import h5py
 
+from ..core.files import check_input
 from ..core.h5str import as_str
 from ..errors import BankError, broken_link
 from .base import Bank, check_format
@@ -54,8 +55,8 @@ def open_bank(path_or_dir, kind: str = "auto", format: str | None = None, **opti
 
 def _regular(p: Path) -> None:
     """A bank is a folder or a regular file: reading a pipe would wait for a writer forever."""
-    if not p.is_dir() and not p.is_file():
-        raise BankError(f"RIR bank {p} is not a regular file (a pipe, device or socket); give the bank file itself")
+    if not p.is_dir():
+        check_input(p, BankError, "give the bank file itself")
 
 
 def _guess_kind(p: Path) -> str:

@@ -23,6 +23,7 @@ import h5py
 import numpy as np
 
 from ..core.atomic import write_error
+from ..core.files import check_input, is_regular
 from ..core.h5str import as_str, as_strs
 from ..errors import BankError, WriteError, shown_path
 from ._h5 import H5Pool, read_rows
@@ -33,6 +34,8 @@ VERSION = 1
 
 
 def is_native_bank(path) -> bool:
+    if not is_regular(path):
+        return False
     try:
         with h5py.File(path, "r") as f:
             return "tsel_bank" in f.attrs
@@ -48,6 +51,7 @@ class NativeBank(Bank):
         self.source = str(self.path)
         if not self.path.exists():
             raise BankError(f"RIR bank {self.path} not found")
+        check_input(self.path, BankError, "give the bank file itself")
         try:
             f = h5py.File(self.path, "r")
         except OSError:

@@ -59,6 +59,10 @@ def positions_problem(bank, room: str) -> TselError | None:
     return None
 
 
+# a room's response peaks far above this (1/(4πr) at 100 m is 8e-4); below it an RIR is damage
+SILENT_RIR = 1e-10
+
+
 def rirs_problem(bank, room: str, content: bool = True) -> TselError | None:
     """The first thing wrong with a few RIRs read along every trajectory of ``room``: their
     shape and channels; with ``content``, also empty, NaN/Inf or all-zero RIRs (render
@@ -85,10 +89,13 @@ def rirs_problem(bank, room: str, content: bool = True) -> TselError | None:
         if not finite.all():
             return BankError(f"{where}: RIR {int(idx[np.argmin(finite)])} holds NaN or Inf; re-import the bank or drop "
                              f"the room")
-        silent = ~np.any(rirs != 0, axis=(1, 2))
+        peaks = np.max(np.abs(rirs), axis=(1, 2))
+        silent = peaks < SILENT_RIR
         if silent.any():
-            return BankError(f"{where}: RIR {int(idx[np.argmax(silent)])} is all zero; re-import the bank or drop the "
-                             f"room")
+            k = int(np.argmax(silent))
+            what = "is all zero" if peaks[k] == 0 else \
+                f"is all but silent (peak {peaks[k]:.2g}, below {SILENT_RIR:g}: scenes would need a gain that overflows)"
+            return BankError(f"{where}: RIR {int(idx[k])} {what}; re-import the bank or drop the room")
     return None
 
 

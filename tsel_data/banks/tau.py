@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.geometry import cart_to_sph
+from ..core.files import check_input
 from ..errors import BankError
 from ..receivers import receiver
 from ._h5 import H5Pool, read_rows
@@ -92,6 +93,7 @@ class TauBank(Bank):
             raise BankError(f"{root}: the TAU-SRIR DB holds foa and mic (tetra) RIRs, not {self.format}")
         self.channel_names = receiver(self.format).channel_names
         for name in ("rirdata.mat", "measinfo.mat"):
+            check_input(self.root / name, BankError, "copy the TAU-SRIR DB again")  # a FIFO keeps loadmat waiting
             if not (self.root / name).exists():
                 raise BankError(f"{self.root}: {name} not found; it ships with the TAU-SRIR DB (point at the TAU-SRIR_DB directory)")
         try:
@@ -106,6 +108,7 @@ class TauBank(Bank):
         for p in sorted(self.root.glob("rirs_*.mat")):
             m = _RIR_FILE.match(p.name)
             if m:
+                check_input(p, BankError, "copy the TAU-SRIR DB again")
                 files[m.group(2)] = (int(m.group(1)), p)
         if not files:
             raise BankError(f"{self.root}: no rirs_NN_<room>.mat files; the RIRs of the TAU-SRIR DB are missing")

@@ -9,6 +9,7 @@ seconds).
 """
 from __future__ import annotations
 
+import errno
 import importlib
 import os
 import sys
@@ -17,8 +18,10 @@ from concurrent.futures.process import BrokenProcessPool
 import click
 from click.exceptions import NoArgsIsHelpError
 
+from ..core.files import blocked_folder
 from ..errors import TselError, WriteError, tidy_message
 from ..runtime.signals import Stopped, stop_requested, stop_signals
+from ..runtime.streams import guarded_output, output_note
 
 # command name -> (module in this package, the click command in it)
 COMMANDS = {
@@ -58,7 +61,17 @@ def cli():
 
 
 def main(argv=None) -> None:
-    # every command stops the same way on SIGINT, SIGTERM and SIGHUP (runtime/signals.py)
+    # every command stops the same way on SIGINT, SIGTERM and SIGHUP (runtime/signals.py);
+    # a stdout or stderr that goes away (`| head`, a full log disk) never stops the work
+    # nor reads as the dataset's failure (runtime/streams.py)
+    with guarded_output() as (out, err):
+        try:
+            _main(argv)
+        finally:
+            output_note(out, err)
+
+
+def _main(argv) -> None:
     with stop_signals():
         try:
             rc = _run(argv)
@@ -96,6 +109,9 @@ def _run(argv):
         sys.exit(130)
     except OSError as e:
         # full disk, unwritable output: say which file, no traceback
+        blocked = e.filename and e.errno in (errno.ENOTDIR, errno.EEXIST) and blocked_folder(e.filename)
+        if blocked:  # a folder to make where a file, a FIFO or a device is
+            _fail(f"cannot make the folder {e.filename}: {blocked}; choose another path")
         _fail(f"{e.strerror or e}: {e.filename or ''}".rstrip(": "))
 
 

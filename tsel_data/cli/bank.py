@@ -8,7 +8,7 @@ import click
 from ..choices import RirMethod, values
 from ..errors import BankError
 from ..receivers import ALIASES, NAMES, RECEIVERS
-from .options import force_option
+from .options import Bounded, force_option
 
 OWNER = "tsel bank"  # build and import: either may replace a bank the other wrote
 
@@ -116,16 +116,16 @@ def info(path, fmt, show_traj, as_json):
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="Bank file to write (.h5).")
 @click.option("--format", "fmt", type=click.Choice(BANK_RECEIVERS), default="mic4", show_default=True,
               help="The receiver the bank's RIRs are simulated for.")
-@click.option("--rooms", "n_rooms", type=int, default=2, show_default=True, help="Number of simulated rooms.")
-@click.option("--seed", type=int, default=0, show_default=True)
-@click.option("--fs", type=int, default=24000, show_default=True)
+@click.option("--rooms", "n_rooms", type=Bounded("rooms", int), default=2, show_default=True, help="Number of simulated rooms.")
+@click.option("--seed", type=Bounded("seed", int), default=0, show_default=True)
+@click.option("--fs", type=Bounded("audio.fs", int), default=24000, show_default=True)
 @click.option("--distances", default="1.0,1.5", show_default=True, help="Ring radii around the array (m).")
 @click.option("--heights", default="-0.3,0,0.3", show_default=True, help="Ring heights relative to the array (m).")
-@click.option("--step", "step_deg", type=float, default=5.0, show_default=True, help="Azimuth step along each ring (deg).")
+@click.option("--step", "step_deg", type=Bounded("step"), default=5.0, show_default=True, help="Azimuth step along each ring (deg).")
 @click.option("--rt60", default="0.3,0.8", show_default=True, help="RT60 range (s).")
-@click.option("--side", type=float, default=0.11, show_default=True, help="mic4 square side (m).")
+@click.option("--side", type=Bounded("array.side"), default=0.11, show_default=True, help="mic4 square side (m).")
 @click.option("--method", type=click.Choice(values(RirMethod)), default=None, help="RIR simulator (default hybrid).")
-@click.option("--rir-seconds", type=float, default=None, help="Cut RIRs to this length (default: full decay).")
+@click.option("--rir-seconds", type=Bounded("rir_seconds"), default=None, help="Cut RIRs to this length (default: full decay).")
 @click.option("--demo", is_flag=True, help="The demo bank (4 rooms, 2 rings x 2 heights, 10 deg steps): the "
               "demo-moving preset's builtin:demo-bank.")
 @force_option

@@ -7,7 +7,7 @@ import click
 
 from ..errors import TselError
 from . import say
-from .options import RUN_ONLY, config_options, load, manifest_option, run_only_options, worker_count
+from .options import RUN_ONLY, Bounded, config_options, load, manifest_option, run_only_options, worker_count
 
 SHOW = 20  # problems printed per kind; the rest are counted (--json lists them all)
 
@@ -17,7 +17,7 @@ SHOW = 20  # problems printed per kind; the rest are counted (--json lists them 
 @config_options
 @click.option("--out", "out_dir", type=click.Path(file_okay=False),
               help="With a config: the output folder a run would use (checked for space, writability, an old plan).")
-@click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
+@click.option("--workers", type=Bounded("workers", int), default=0, help="Processes (default: number of cores).")
 @click.option("--no-plan", is_flag=True, help="With a config: skip sampling every scene in memory (with corpus.check = \"drawn\" every clip is then checked in full: no plan says which it draws).")
 @click.option("--no-audio", is_flag=True, help="With DIR: skip checking every audio sample is finite.")
 @click.option("--json", "as_json", is_flag=True, help="Print the full report as JSON.")

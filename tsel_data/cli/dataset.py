@@ -6,14 +6,14 @@ import click
 from ..choices import MissingClipPolicy, values
 from ..errors import TselError
 from . import say
-from .options import (allow_reuse_option, config_options, executor_options, load, manifest_option, roots_options,
-                      worker_count)
+from .options import (Bounded, allow_reuse_option, config_options, executor_options, load, manifest_option,
+                      roots_options, worker_count)
 
 
 @click.command("generate")
 @config_options
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
-@click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
+@click.option("--workers", type=Bounded("workers", int), default=0, help="Processes (default: number of cores).")
 @click.option("--resume", is_flag=True, help="Continue an interrupted run in --out.")
 @click.option("--grow", is_flag=True, help="Add scenes to the dataset in --out: give larger --split counts; the "
               "scenes it has stay byte-identical.")
@@ -84,7 +84,7 @@ def _report(line: str) -> None:
 @click.command("plan")
 @config_options
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
-@click.option("--workers", type=int, default=0, help="Processes for checking clips.")
+@click.option("--workers", type=Bounded("workers", int), default=0, help="Processes for checking clips.")
 @click.option("--grow", is_flag=True, help="Add scenes to the plan in --out (larger --split counts).")
 @click.option("--force", is_flag=True, help="Write into a folder that holds other files (not a tsel-data dataset).")
 @manifest_option
@@ -120,7 +120,7 @@ def _parse_range(text: str | None):
 @click.command("render")
 @click.argument("out_dir", type=click.Path(file_okay=False))
 @click.option("--shards", help="A range of global shard numbers, e.g. 0-99 (default: all).")
-@click.option("--workers", type=int, default=0, help="Processes (default: number of cores).")
+@click.option("--workers", type=Bounded("workers", int), default=0, help="Processes (default: number of cores).")
 @click.option("--quiet", is_flag=True)
 @executor_options
 @roots_options

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import click
 
+from .options import Bounded
+
 
 class _ExportGroup(click.Group):
     """The export formats, looked up in the registry when asked for."""
@@ -34,7 +36,7 @@ def _option(o):
     if o.flag:
         return click.option(f"{flag}/--no-{o.name.replace('_', '-')}", o.name, default=bool(o.default),
                             show_default=True, help=o.help)
-    kind = click.Choice(list(o.choices)) if o.choices else None
+    kind = click.Choice(list(o.choices)) if o.choices else Bounded(o.bound, int, o.parse) if o.bound else None
     return click.option(flag, o.name, default=o.default, type=kind, show_default=o.default is not None, help=o.help)
 
 

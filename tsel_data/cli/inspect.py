@@ -2,7 +2,7 @@
 ``tsel inspect DIR --sheet F.html``: many scenes at a glance, with players."""
 import click
 
-from .options import force_option, note_unfinished, roots_options
+from .options import Bounded, force_option, note_unfinished, roots_options
 
 
 @click.command("inspect")
@@ -19,7 +19,7 @@ from .options import force_option, note_unfinished, roots_options
 @click.option("--sheet", type=click.Path(dir_okay=False), help="Instead of one SCENE, a contact sheet of --scenes "
               "scenes: F.html (picture, query, captions, labels in words and a player per scene; its files in "
               "F_files/) or F.png (the pictures alone).")
-@click.option("--scenes", "n_scenes", type=click.IntRange(min=1), default=24, show_default=True,
+@click.option("--scenes", "n_scenes", type=Bounded("scenes", int), default=24, show_default=True,
               help="With --sheet: how many scenes, spread evenly over the split(s).")
 @click.option("--receiver", help="A dataset heard by several receivers: this one's audio (default the first).")
 @roots_options

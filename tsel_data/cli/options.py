@@ -10,14 +10,54 @@ from ..errors import TselError
 from . import say
 
 
+class Bounded(click.ParamType):
+    """A number within the bounds the config schema declares for ``key`` (a config key,
+    ``audio.fs``, or a command option of ``config.schema.CommandOptions``, ``tolerance``):
+    ``nan``, ``inf``, ``-1`` or a fraction for a count are one line, never used. ``kind``:
+    ``int`` or ``float``; ``parse``: text to number first (an export's ``500MB``)."""
+
+    def __init__(self, key: str, kind: type = float, parse=None):
+        self.key, self.kind, self.parse = key, kind, parse
+        self.name = "integer" if kind is int else "number"
+
+    def convert(self, value, param, ctx):
+        from ..config.rules import option_problem  # the schema: loaded when an option is given
+
+        if isinstance(value, str):
+            try:
+                value = self.parse(value) if self.parse else _number(value, self.kind)
+            except TselError as e:
+                self.fail(str(e), param, ctx)
+            except ValueError:
+                self.fail(f"{value!r} is not a number", param, ctx)
+        problem = option_problem(self.key, value)
+        if problem:
+            self.fail(f"{problem}, got {value!r}", param, ctx)
+        if self.kind is int:
+            if float(value) != int(value):
+                self.fail(f"{value!r} is not a whole number", param, ctx)
+            return int(value)
+        return value
+
+
+def _number(text: str, kind: type):
+    """``text`` as a number: a whole one exactly (a seed of 19 digits stays itself)."""
+    if kind is int:
+        try:
+            return int(text.strip())
+        except ValueError:
+            pass
+    return float(text)
+
+
 def config_options(f):
     """--preset, --config, --corpus-dir, --split, --seed, --bank, --set."""
     opts = [
         click.option("--preset", help="A built-in preset (see `tsel presets`)."),
-        click.option("--config", "config_path", type=click.Path(dir_okay=False), help="A TOML config file."),
+        click.option("--config", "config_path", type=click.Path(), help="A TOML config file."),
         click.option("--corpus-dir", type=click.Path(file_okay=False), help="Folder with the manifests and audio."),
         click.option("--split", "splits", multiple=True, metavar="NAME=COUNT", help="Scenes in a split (repeatable)."),
-        click.option("--seed", type=int, help="Dataset seed."),
+        click.option("--seed", type=Bounded("seed", int), help="Dataset seed."),
         click.option("--bank", type=click.Path(), help="RIR bank: a TAU-SRIR DB folder, SOFA file(s) or a tsel bank."),
         click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
                      help="Override a config key, e.g. --set room.rt60='[\"uniform\", 0.3, 0.6]'."),

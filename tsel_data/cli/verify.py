@@ -3,15 +3,15 @@ import json
 
 import click
 
-from .options import note_unfinished
+from .options import Bounded, note_unfinished
 
 
 @click.command("verify")
 @click.argument("dataset_dir", type=click.Path(file_okay=False))
 @click.option("--split", "splits", multiple=True, help="Only this split (repeatable; default: all).")
-@click.option("--tolerance", type=float, default=20.0, show_default=True, help="Agreement threshold (deg).")
-@click.option("--max-scenes", type=int, help="Check only the first N scenes of each split.")
-@click.option("--fail-under", type=float, default=0.0, show_default=True,
+@click.option("--tolerance", type=Bounded("tolerance"), default=20.0, show_default=True, help="Agreement threshold (deg).")
+@click.option("--max-scenes", type=Bounded("max_scenes", int), help="Check only the first N scenes of each split.")
+@click.option("--fail-under", type=Bounded("fail_under"), default=0.0, show_default=True,
               help="Exit with 1 if a split's agreement rate (0-1) is below this.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON (every disagreeing scene, every source).")
 @click.option("--quiet", is_flag=True, help="No progress bar (it shows only on a terminal anyway).")

@@ -37,7 +37,8 @@ def _table(specs, default) -> str:
         meaning = m["doc"]
         if m.get("choices"):
             meaning += "; one of " + ", ".join(f"`{c}`" for c in m["choices"])
-        bounds = [f"{op} {m[k]:g}" for k, op in (("ge", "≥"), ("gt", ">"), ("le", "≤"), ("lt", "<")) if m.get(k) is not None]
+        bounds = [f"{op} {m[k]:g}" if isinstance(m[k], float) else f"{op} {m[k]:,}"
+                  for k, op in (("ge", "≥"), ("gt", ">"), ("le", "≤"), ("lt", "<")) if m.get(k) is not None]
         if bounds:
             meaning += f" ({', '.join(bounds)})"
         if m.get("integer"):

@@ -13,10 +13,11 @@ from dataclasses import fields
 from importlib import resources
 from typing import Any
 
+from ..core.files import check_input
 from ..errors import ConfigError
 from ..scene.distributions import Dist
-from .rules import Where, at, check_raw_config, validate_config
-from .schema import SECTIONS, TOP_FIELDS, TOP_KEYS, Config, SplitConfig
+from .rules import MAX_DEPTH, Where, at, check_raw_config, validate_config
+from .schema import HARDWARE_PROFILES, SECTIONS, TOP_FIELDS, TOP_KEYS, Config, SplitConfig
 
 BUILTIN_PREFIX = "builtin:"  # corpus.dir / room.bank values the run builds itself
 
@@ -121,7 +122,8 @@ def parse_config(raw: dict, where: str = "config", validate: bool = True, stored
         if key in raw:
             kw[key] = _parse_value(raw[key], top[key], Config(), where, key)
     for sec, cls in SECTIONS.items():
-        kw[sec] = _parse_section(raw.get(sec, {}), cls, where, sec, stored)
+        kw[sec] = _parse_section(_with_profile(raw.get(sec, {})) if sec == "hardware" else raw.get(sec, {}), cls,
+                                 where, sec, stored)
     splits = {}
     for name, sraw in (raw.get("splits") or {}).items():
         if not isinstance(sraw, dict):
@@ -139,6 +141,15 @@ def parse_config(raw: dict, where: str = "config", validate: bool = True, stored
 # --- helpers -----------------------------------------------------------------------------
 
 
+def _with_profile(hardware):
+    """``[hardware]`` with its profile's values (schema.HARDWARE_PROFILES) under every key it
+    leaves unset, so the parsed config, and the config a dataset stores, hold what is drawn."""
+    profile = hardware.get("profile") if isinstance(hardware, dict) else None
+    if not isinstance(profile, str) or profile not in HARDWARE_PROFILES:
+        return hardware  # the schema says what is wrong with a profile of another type
+    return {**HARDWARE_PROFILES[hardware["profile"]], **hardware}
+
+
 def _split_names(layers) -> list[str]:
     """The split names the (label, table) layers define, in the order they first appear."""
     names: dict[str, None] = {}
@@ -149,6 +160,7 @@ def _split_names(layers) -> list[str]:
 
 
 def _read_user_file(path: str) -> dict:
+    check_input(path, ConfigError, "give the TOML config file itself")
     if not os.path.isfile(path):
         raise ConfigError(f"config file not found: {path}")
     try:
@@ -173,10 +185,40 @@ def _read_user_file(path: str) -> dict:
 
 
 def _parse_toml(text: str, where: str) -> dict:
+    _check_depth(text, where)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{where}: not valid TOML: {e}") from None
+    except RecursionError:  # what _check_depth's scan missed
+        raise ConfigError(f"{where}: values nested too deeply; no config value nests more than {MAX_DEPTH} "
+                          f"levels") from None
+
+
+def _check_depth(text: str, where: str) -> None:
+    """ConfigError when brackets or braces outside strings nest deeper than MAX_DEPTH:
+    the TOML parser would recurse until Python stops it (a 5,000-deep list)."""
+    depth = deepest = 0
+    quote = ""
+    escaped = False
+    for c in text:
+        if quote:
+            if escaped:
+                escaped = False
+            elif c == "\\" and quote == '"':
+                escaped = True
+            elif c == quote:
+                quote = ""
+        elif c in "\"'":
+            quote = c
+        elif c in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif c in "]}":
+            depth -= 1
+    if deepest > MAX_DEPTH:
+        raise ConfigError(f"{where}: values nested {deepest} levels deep; no config value nests more than "
+                          f"{MAX_DEPTH} (array.capsules is [[x, y, z], ...]): check the brackets")
 
 
 def _parse_override(ov: str) -> dict:
@@ -184,7 +226,11 @@ def _parse_override(ov: str) -> dict:
         raise ConfigError(f"--set {ov!r}: expected section.key=value, e.g. --set room.rt60=0.6")
     key, value = ov.split("=", 1)
     try:
+        _check_depth(value, f"--set {key.strip()}")
         parsed = tomllib.loads(f"v = {value}")["v"]
+    except RecursionError:
+        raise ConfigError(f"--set {key.strip()}: values nested too deeply; no config value nests more than {MAX_DEPTH} "
+                          f"levels") from None
     except tomllib.TOMLDecodeError:
         parsed = value  # a bare word: treat as a string
     out: dict = {}

@@ -7,6 +7,7 @@ import math
 import os
 
 from ..choices import ReceiverModel
+from ..core.files import path_problem
 from ..errors import ConfigError
 from ..receivers import MAX_CHANNELS, NAMES, PATTERN_ALPHA, ArrayPose, canonical, receiver
 from .schema import Config
@@ -172,6 +173,9 @@ def hrtf_problem(cfg: Config) -> ConfigError | None:
     if all(receiver(n).model != ReceiverModel.HRTF for n in receiver_names(cfg)) or not cfg.array.hrtf:
         return None
     path = os.path.abspath(os.path.expanduser(cfg.array.hrtf))
+    problem = path_problem(path)
+    if problem and problem != "does not exist":
+        return ConfigError(f"array.hrtf: {path} {problem}; give the path of a SOFA HRTF file (SimpleFreeFieldHRIR)")
     if not os.path.isfile(path):
         return ConfigError(f"array.hrtf: {path} not found; give the path of a SOFA HRTF file (SimpleFreeFieldHRIR)")
     from ..acoustics.hrtf import read_hrtf  # h5py and scipy.fft: only binaural configs pay for them

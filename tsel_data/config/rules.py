@@ -15,21 +15,23 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from dataclasses import fields
 
 from ..acoustics.metrics import sabine_min_rt60
-from ..choices import LevelModel, NoiseKind, Pairing, QueryType, RecordedSet, Relation, SimilarityMeasure, values
+from ..choices import (SPLIT_NAME, LevelModel, NoiseKind, Pairing, QueryType, RecordedSet, Relation, SensorLevel,
+                       SimilarityMeasure, values)
 from ..errors import ConfigError, GeometryError
 from ..receivers import RECEIVERS, canonical, receiver
 from ..scene.distributions import Dist
+from ..scene.hardware import read_response
 from ..scene.queries import RELATIONS
 from .receiver import array_poses, receiver_problems
-from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
+from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig, declared
 
 MAX_NUMBER = 1e9  # larger config numbers are typos (seeds excepted)
+MAX_DEPTH = 16  # tables and lists nest no deeper in a config (array.capsules: 3 levels under the root)
+MAX_NOISE_OVER_TARGET_DB = 20.0  # every noise's SNR is at least -20 dB (schema: noise.*_snr)
 RELATION_NAMES = values(Relation)
-SPLIT_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 
 
 class Where(str):
@@ -93,17 +95,20 @@ def check_raw_config(raw, where: str = "config") -> None:
     _finite(raw, where, "")
 
 
-def _finite(x, where: str, key: str) -> None:
+def _finite(x, where: str, key: str, depth: int = 0) -> None:
+    if depth > MAX_DEPTH:
+        raise ConfigError(f"{at(where, key)}: {key or 'config'} holds values nested more than {MAX_DEPTH} levels "
+                          f"deep; no config value nests so deep: check the brackets")
     if isinstance(x, dict):
         for k, v in x.items():
             if not isinstance(k, str) or any(ord(c) < 32 or ord(c) == 127 for c in k):
                 shown = f"{key}.{k!r}" if key else repr(k)
                 raise ConfigError(f"{where}: config key {shown} is not a plain name (control characters or not a "
                                   f"string); keys are names such as room.rt60")
-            _finite(v, where, f"{key}.{k}" if key else str(k))
+            _finite(v, where, f"{key}.{k}" if key else str(k), depth + 1)
     elif isinstance(x, (list, tuple)):
         for v in x:
-            _finite(v, where, key)
+            _finite(v, where, key, depth + 1)
     elif isinstance(x, bool):
         return
     elif isinstance(x, (int, float)):
@@ -191,10 +196,25 @@ def _within(v: float, m: dict) -> bool:
 
 
 def _condition(m: dict) -> str:
-    parts = [f"{op} {m[k]:g}" for k, op in _BOUNDS if m.get(k) is not None]
+    parts = [f"{op} {m[k]:g}" if isinstance(m[k], float) else f"{op} {m[k]}" for k, op in _BOUNDS
+             if m.get(k) is not None]
     unit = f" {m['unit']}" if m.get("unit") else ""
     why = f" ({m['why']})" if m.get("why") else ""
     return " and ".join(parts) + unit + why
+
+
+def option_problem(key: str, value) -> str | None:
+    """Why ``value`` cannot be the setting ``key`` (a config key or a command option of
+    schema.CommandOptions): not a number, not finite, a fraction for a count, or out of
+    the declared bounds ("must be > 0 and <= 180 deg"); None when it can."""
+    m = declared(key).metadata
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return f"must be a number ({_condition(m)})"
+    if not math.isfinite(value):
+        return f"must be a finite number, {_condition(m)}"
+    if not _within(value, m):
+        return f"must be {_condition(m)}"
+    return None
 
 
 # --- across fields ------------------------------------------------------------------------------
@@ -229,6 +249,7 @@ def cross_field_problems(cfg: Config, where: str | None = None) -> list[ConfigEr
     out += _query_problems(cfg, where)
     out += _noise_problems(cfg, where)
     out += _recorded_problems(cfg, where)
+    out += _hardware_problems(cfg, where)
     receiver_errors = receiver_problems(cfg, at(where, "array.capsules", "array.patterns", "array.orientations",
                                                 "array.hrtf", "scene.receivers", "scene.format"))
     out += receiver_errors
@@ -306,6 +327,53 @@ def _recorded_problems(cfg: Config, where: str) -> list[ConfigError]:
     return out
 
 
+def _hardware_problems(cfg: Config, where: str) -> list[ConfigError]:
+    """[hardware] with the receivers: capsules to put it on (not a format such as FOA), a
+    device per capsule, a response file that reads."""
+    hw = cfg.hardware
+    if not hw.on and not hw.devices:
+        return []
+    if cfg.recorded.on:
+        return [ConfigError(f"{at(where, 'hardware.profile', 'recorded.dataset')}: recorded scenes were made with real "
+                            f"microphones; [hardware] does not apply to them: leave it unset")]
+    names = [n for n in (cfg.scene.format, *cfg.scene.receivers) if canonical(n) is not None]
+    out = []
+    for name in names:
+        spec = receiver(name)
+        if spec.coincident:
+            base = f" (mixed from {spec.base})" if spec.base else ""
+            out.append(ConfigError(f"{at(where, 'hardware.profile', 'scene.format', 'scene.receivers')}: [hardware] "
+                                   f"cannot go on {spec.name}{base}: it is a format, not a microphone, its channels "
+                                   f"encoded from capsules; put it on the capsules (scene.format = \"tetra\" or "
+                                   f"\"em32\") or leave [hardware] unset"))
+            return out
+    if hw.devices:
+        devs = hw.devices
+        if not all(isinstance(d, int) and not isinstance(d, bool) and 0 <= d < MAX_CHANNELS_DEVICES for d in devs) \
+                or 0 not in devs:
+            out.append(ConfigError(f"{at(where, 'hardware.devices')}: hardware.devices gives each capsule's device as a "
+                                   f"whole number from 0 (the first device, whose clock the others are timed "
+                                   f"against), e.g. [0, 0, 1, 1]; got {list(devs)!r}"))
+        else:
+            for name in names:
+                if receiver(name).configured and not cfg.array.capsules:
+                    continue  # receiver_problems names a custom array without capsules
+                n = array_poses(cfg)[names.index(name)].n_channels
+                if n != len(devs):
+                    out.append(ConfigError(f"{at(where, 'hardware.devices', 'scene.format')}: hardware.devices names "
+                                           f"{len(devs)} capsules but {name} has {n}; give one device per capsule"))
+                    break
+    if hw.response:
+        try:
+            read_response(hw.response)
+        except ConfigError as e:
+            out.append(ConfigError(f"{at(where, 'hardware.response')}: {e}"))
+    return out
+
+
+MAX_CHANNELS_DEVICES = 64  # a device index is below the most capsules a receiver has
+
+
 def _noise_problems(cfg: Config, where: str) -> list[ConfigError]:
     """[noise] and scene.levels with the rest of the config."""
     out = []
@@ -318,6 +386,16 @@ def _noise_problems(cfg: Config, where: str) -> list[ConfigError]:
         out.append(ConfigError(f"{at(where, 'scene.levels')}: same-kind distractors (composite queries) are told "
                                f"apart by their TIR, which scene.levels = \"distance\" does not set; use "
                                f"scene.levels = \"tir\" with them"))
+    sensor = cfg.noise.sensor_level.bounds
+    if cfg.noise.sensor == SensorLevel.DBFS and sensor is not None and \
+            sensor[1] > min(0.0, cfg.audio.target_level_dbfs + MAX_NOISE_OVER_TARGET_DB):
+        # the other noises are set by an SNR of at least -20 dB; sensor noise in dBFS is held to the same
+        top = min(0.0, cfg.audio.target_level_dbfs + MAX_NOISE_OVER_TARGET_DB)
+        out.append(ConfigError(f"{at(where, 'noise.sensor_level', 'noise.sensor')}: noise.sensor_level up to "
+                               f"{sensor[1]:g} dBFS would bury the target at audio.target_level_dbfs = "
+                               f"{cfg.audio.target_level_dbfs:g} dBFS (more than {MAX_NOISE_OVER_TARGET_DB:g} dB above "
+                               f"it, as no other noise may be); keep it at most {top:g} dBFS, e.g. "
+                               f"[\"uniform\", -90.0, -70.0]"))
     return out
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 
 from ..choices import (Additive, AudioCoding, BadClipPolicy, Baffle, CheckLevel, CorpusFormat, Fingerprint,
-                       HrtfInterpolation, LevelModel, Motion, NoiseSpectrum, Pairing, PathKind, QueryType,
+                       HardwareProfile, HrtfInterpolation, LevelModel, Motion, NoiseSpectrum, Pairing, PathKind, QueryType,
                        RecordedSet, Relation, RirMethod, Scenario, SegmentRule, SensorLevel, SimilarityMeasure, values)
 from ..core.jsonable import jsonable
 from ..receivers import NAMES as RECEIVER_NAMES
@@ -82,17 +82,17 @@ class CorpusConfig:
                                       "(size and sha256 of the bytes, read again at every resume; catches that "
                                       "too, and a file only touched or copied keeps its shards). Set it when "
                                       "planning (docs/reliability.md)", choices=Fingerprint, new=True)
-    min_duration: float = option(1.0, "shorter clips are bad clips", unit="s")
+    min_duration: float = option(1.0, "shorter clips are bad clips", unit="s", ge=0.0, le=3600.0)
     max_channels: int = option(8, "a file with more channels is a bad clip (probably not a recording)",
-                               unit="channels")
+                               unit="channels", ge=1, le=1024)
     min_samplerate: int = option(0, "clips recorded at a lower rate are left out (counted, not bad clips): a 16 kHz "
                                     "clip is empty above 8 kHz, under the Nyquist of 24 kHz scenes (`tsel check` "
                                     "counts such clips); e.g. the scenes' `audio.fs`; 0 keeps every clip. Needs "
-                                    "`check = \"header\"` or `\"full\"`", unit="Hz", ge=0, new=True)
+                                    "`check = \"header\"` or `\"full\"`", unit="Hz", ge=0, le=768000, new=True)
     max_reuse: float = option(20.0, "`tsel generate` and `tsel plan` stop before any work when a split's count "
                                     "would have each usable clip sound in more scenes than this on average (as "
                                     "target or interferer), e.g. a paper preset's 7,224 scenes over 8 clips; "
-                                    "`--allow-reuse` goes on anyway", unit="scenes per clip", gt=0, new=True)
+                                    "`--allow-reuse` goes on anyway", unit="scenes per clip", gt=0, le=1e6, new=True)
     caption_embeddings: str = option("", "an `.npz` of caption vectors (`captions` [N] str, `vectors` [N, D]; CLAP or "
                                          "MiniLM embeddings made elsewhere, or by `tsel corpus embed`) for "
                                          "`scene.similarity = \"embeddings\"`; it must hold every caption of the "
@@ -109,7 +109,7 @@ class SplitConfig:
     audio_dir: str = option("", "this split's audio folder, relative to `corpus.dir` (e.g. Clotho's `development`); "
                                 "default `corpus.audio_dir`", new=True)
     count: int = option(0, "scenes to make (`--split NAME=COUNT` overrides); recorded datasets: at most this many, "
-                           "every target when there are fewer", unit="scenes", ge=0)
+                           "every target when there are fewer", unit="scenes", ge=0, le=100_000_000)
     rooms: tuple = option((), "RIR-bank rooms this split may use (bank datasets), by name or number. Empty: the "
                               "rooms no other split names (every room when no split names any), so a split never "
                               "draws another split's rooms; a room named by two splits is an error. Recorded "
@@ -125,12 +125,15 @@ class AudioConfig:
 
     fs: int = option(24000, "sample rate of the scenes (clips are resampled, polyphase)", unit="Hz", ge=8000,
                      le=192000)
-    duration: float = option(10.0, "scene length; clips are zero-padded or cut to it", unit="s", gt=0)
-    label_hop: float = option(0.1, "label frame hop; `duration` must be a whole number of hops", unit="s", gt=0)
+    duration: float = option(10.0, "scene length; clips are zero-padded or cut to it", unit="s", gt=0, le=600.0,
+                             why="a scene's audio is held in memory whole")
+    label_hop: float = option(0.1, "label frame hop; `duration` must be a whole number of hops", unit="s", gt=0,
+                              le=60.0)
     activity_threshold_db: float = option(-30.0, "a frame is active if its energy is within this of the clip's "
-                                                 "loudest frame", unit="dB", lt=0.0,
+                                                 "loudest frame", unit="dB", ge=-200.0, lt=0.0,
                                           why="at 0 dB or above only the loudest frame, or none, is active")
-    target_level_dbfs: float = option(-25.0, "active-frame RMS of the target's image at the array", unit="dBFS")
+    target_level_dbfs: float = option(-25.0, "active-frame RMS of the target's image at the array", unit="dBFS",
+                                      ge=-80.0, le=0.0, why="a level in dBFS: full scale is 0, int16 rounds at -101")
 
 
 @dataclass(frozen=True)
@@ -153,15 +156,17 @@ class SceneConfig:
                                        "uncorrelated; docs/acoustics.md); its level is defined the same way",
                            choices=Additive, new=True)
     interferers: Dist = dist(1, "interferers per scene (a distribution is allowed); in `directional+additive` the "
-                                "first is additive", unit="sources", ge=1, why="a scene holds at least two sources",
+                                "first is additive", unit="sources", ge=1, le=16, why="a scene holds at least two sources",
                      integer=True)
     tir_db: Dist = dist(["uniform", -5.0, 5.0], "target-to-interferer ratio at the array, per interferer "
-                                              "(`levels = \"tir\"`; additive sources always)", unit="dB")
+                                              "(`levels = \"tir\"`; additive sources always)", unit="dB",
+                  ge=-60.0, le=60.0)
     levels: str = option("tir", "how source levels are set: `tir` (the paper's: each interferer `tir_db` below the "
                                 "target at the array, whatever the distance) or `distance` (each source gets a level "
                                 "at 1 m, `sources.power`, and its level at the array follows from its distance and "
                                 "the room: nearer is louder)", choices=LevelModel, new=True)
-    min_separation: float = option(20.0, "minimum azimuth between directional sources", unit="deg")
+    min_separation: float = option(20.0, "minimum azimuth between directional sources", unit="deg", ge=0.0,
+                                   le=360.0)
     separated_frames: float = option(0.8, "fraction of label frames on which `min_separation` must hold; static "
                                           "sources hold it on every frame or none, a moving source may cross "
                                           "another for the rest (at 40 °/s a 10 s walk goes all the way round)",
@@ -169,7 +174,7 @@ class SceneConfig:
     caption_similarity: float = option(0.5, "the ambiguity guard: an interferer is rejected if any of its captions is "
                                             "more similar than this to the query caption (`similarity`; `lexicon`: "
                                             "to any caption of the target clip), so the caption picks out one "
-                                            "source", unit="similarity 0-1")
+                                            "source", unit="similarity 0-1", ge=0.0, le=1.0)
     similarity: str = option("lexicon", "the caption similarity of the guard, pairing and same-kind distractors: "
                                         "`lexicon` (cosine of concept sets: words lemmatised, synonyms and broader "
                                         "terms of sound events joined, so paraphrases meet), `words` (word-set "
@@ -196,26 +201,28 @@ class SceneConfig:
     onset: Dist = dist(0.0, "when each source starts in the scene (silence before; the clip is cut at the scene's "
                             "end): a constant or a distribution, drawn per source. Real clips sound from their "
                             "first frame, so `starts_first` / `starts_last` queries need this, e.g. "
-                            "`[\"uniform\", 0.0, 3.0]`", unit="s", ge=0.0, new=True)
+                            "`[\"uniform\", 0.0, 3.0]`", unit="s", ge=0.0, le=600.0, new=True)
     same_kind_distractors: float = option(0.0, "probability that an interferer is a different clip of the target's "
-                                               "kind (caption similarity at least `same_kind_similarity`); such "
-                                               "scenes get a composite or relational query, never a bare caption",
+                                               "kind (caption similarity at least `same_kind_similarity`, naming "
+                                               "every sound event the query caption names and none the target does "
+                                               "not: docs/queries.md); such scenes get a composite or relational "
+                                               "query, never a bare caption",
                                           unit="probability", ge=0.0, le=1.0, new=True)
     same_kind_similarity: float = option(0.6, "a same-kind distractor's captions are at least this similar to the "
                                               "query caption", unit="similarity 0-1", gt=0.0, le=1.0, new=True)
     margin_level: float = option(DEFAULT_MARGINS["margin_level"], "loudest / quietest: the target's level at the "
                                  "array differs from every other source's by at least this (same-kind distractors "
-                                 "get |TIR| of at least this plus 0.5 dB)", unit="dB", gt=0.0, new=True)
+                                 "get |TIR| of at least this plus 0.5 dB)", unit="dB", gt=0.0, le=60.0, new=True)
     margin_distance: float = option(DEFAULT_MARGINS["margin_distance"], "nearest / farthest: the target is at least "
                                     "this much nearer / farther than every other directional source, on every label "
-                                    "frame", unit="m", gt=0.0, new=True)
+                                    "frame", unit="m", gt=0.0, le=100.0, new=True)
     margin_onset: float = option(DEFAULT_MARGINS["margin_onset"], "starts first / last: the target's first active "
                                  "frame is at least this before / after every other source's", unit="s", gt=0.0,
-                                 new=True)
+                                 le=600.0, new=True)
     margin_motion: float = option(DEFAULT_MARGINS["margin_motion"], "moving: the target's direction travels at least "
-                                  "this far while every other source stays put", unit="deg", gt=0.0, new=True)
+                                  "this far while every other source stays put", unit="deg", gt=0.0, le=360.0, new=True)
     margin_solo: float = option(DEFAULT_MARGINS["margin_solo"], "heard at T: the target is the only active source on "
-                                "every label frame within this window centred on T", unit="s", gt=0.0, new=True)
+                                "every label frame within this window centred on T", unit="s", gt=0.0, le=600.0, new=True)
     motion: str = option("static", "`static`, `moving` or `mixed`. In simulated rooms a moving source follows "
                                    "`path`, with an RIR at least every 100 ms, every 4° and every 6 cm (4.5 cm on arcs); "
                                    "with a bank it walks a bank trajectory, starting at a random point in a random "
@@ -226,7 +233,8 @@ class SceneConfig:
     speed: Dist = dist(["choose", [10.0, 20.0, 40.0]],
                        "angular speed of moving sources as seen from the array, great-circle arc (the DCASE "
                        "generator's set), for bank walks and simulated paths alike: a simulated arc at elevation e "
-                       "turns its azimuth at speed / cos e", unit="deg/s", ge=0.0)
+                       "turns its azimuth at speed / cos e", unit="deg/s", ge=0.0, le=360.0,
+                  why="a turn a second at most: a moving source is rendered at a knot every 4°")
     path: Dist = dist("arc", "how simulated sources move: `arc` (around the array at constant distance and height) "
                              "or `line` (a straight pass at constant height: closest to the array at a random time "
                              "of the clip, at `sources.distance`, where it sweeps `speed`, so v = speed·distance; "
@@ -240,10 +248,11 @@ class RoomConfig:
     """Simulated shoebox rooms, or an RIR bank."""
 
     length: Dist = dist(["uniform", 5.0, 15.0], "shoebox length (the paper's \"each side 5–15 m\")", unit="m",
-                        gt=0.0)
-    width: Dist = dist(["uniform", 5.0, 15.0], "shoebox width", unit="m", gt=0.0)
-    height: Dist = dist(["uniform", 5.0, 15.0], "shoebox height (`realistic-sim` uses 2.5–4 m)", unit="m", gt=0.0)
-    rt60: Dist = dist(["uniform", 0.5, 1.0], "requested reverberation time", unit="s", gt=0.0)
+                        gt=0.0, le=200.0)
+    width: Dist = dist(["uniform", 5.0, 15.0], "shoebox width", unit="m", gt=0.0, le=200.0)
+    height: Dist = dist(["uniform", 5.0, 15.0], "shoebox height (`realistic-sim` uses 2.5–4 m)", unit="m", gt=0.0,
+                        le=200.0)
+    rt60: Dist = dist(["uniform", 0.5, 1.0], "requested reverberation time", unit="s", gt=0.0, le=20.0)
     rir_method: str = option("hybrid", "RIR simulator (see acoustics.md; `pyroomacoustics` renders omni capsules "
                                        "only, so not FOA)", choices=RirMethod)
     bank: str = option("", "path of an RIR bank (a TAU-SRIR DB folder, SOFA files or a tsel bank; "
@@ -256,10 +265,12 @@ class ArrayConfig:
     """Where the receiver stands in a simulated room, and what a custom, sphere or binaural
     receiver is made of."""
 
-    side: Dist = dist(["uniform", 0.10, 0.13], "mic4 side length", unit="m", gt=0.0)
-    height: Dist = dist(["uniform", 1.0, 1.2], "array centre height above the floor", unit="m", ge=0.0)
-    yaw: Dist = dist(["uniform", -180.0, 180.0], "direction of the array's front in the room", unit="deg")
-    wall_margin: float = option(1.0, "minimum distance from the array centre to the side walls", unit="m")
+    side: Dist = dist(["uniform", 0.10, 0.13], "mic4 side length", unit="m", gt=0.0, le=10.0)
+    height: Dist = dist(["uniform", 1.0, 1.2], "array centre height above the floor", unit="m", ge=0.0, le=200.0)
+    yaw: Dist = dist(["uniform", -180.0, 180.0], "direction of the array's front in the room", unit="deg",
+                     ge=-360.0, le=360.0)
+    wall_margin: float = option(1.0, "minimum distance from the array centre to the side walls", unit="m", ge=0.0,
+                                le=100.0)
     capsules: tuple = option((), "`scene.format = \"custom\"`: capsule positions `[[x, y, z], ...]` in the array "
                                  "frame (x front, y left, z up), 1-64 capsules; labels stay in this frame",
                              unit="m", new=True)
@@ -276,16 +287,18 @@ class ArrayConfig:
                            "KEMAR set; the head's yaw is `yaw`", path=True, new=True)
     hrtf_interpolation: str = option("nearest", "binaural: each image source through the `nearest` measured HRIR, "
                                                 "or `interpolated` (the measured triangle around its direction, "
-                                                "barycentric weights)", choices=HrtfInterpolation, new=True)
+                                                "barycentric weights, blended time-aligned: onsets removed, "
+                                                "blended, the interpolated ITD put back)", choices=HrtfInterpolation, new=True)
 
 
 @dataclass(frozen=True)
 class SourcesConfig:
     """Where directional sources are placed."""
 
-    distance: Dist = dist(["uniform", 1.0, 3.0], "distance from the array centre", unit="m", ge=0.0)
-    height: Dist = dist(["uniform", 0.5, 2.0], "source height above the floor", unit="m", ge=0.0)
-    wall_margin: float = option(0.5, "minimum distance from every wall, floor and ceiling", unit="m")
+    distance: Dist = dist(["uniform", 1.0, 3.0], "distance from the array centre", unit="m", ge=0.0, le=200.0)
+    height: Dist = dist(["uniform", 0.5, 2.0], "source height above the floor", unit="m", ge=0.0, le=200.0)
+    wall_margin: float = option(0.5, "minimum distance from every wall, floor and ceiling", unit="m", ge=0.0,
+                                le=100.0)
     power: Dist = dist(["uniform", -5.0, 5.0], "with `scene.levels = \"distance\"`: each directional source's "
                                                "level at 1 m (its direct sound, relative: the scene is then scaled "
                                                "so the target sits at `audio.target_level_dbfs`); its level at the "
@@ -327,6 +340,72 @@ class NoiseConfig:
 
 
 @dataclass(frozen=True)
+class HardwareConfig:
+    """The microphones as they are built: each capsule's gain, delay, frequency response and
+    self-noise off nominal, and each device's clock, drawn per scene and capsule from these
+    distributions and applied to the rendered audio of every receiver (each its own draw),
+    after the room and before output coding: labels stay the geometric truth. Off by
+    default; `profile` fills every key left unset with a typical MEMS board's or a
+    measurement-grade array's values (docs/config.md). What was drawn is in the record and
+    the shard (docs/format.md). FOA and the stereo pair mixed from it are formats, not
+    microphones: refused (put the hardware on `tetra` or `em32`, the capsules FOA is
+    encoded from)."""
+
+    profile: str = option("none", "typical values for every key below left unset: `mems` (a MEMS board), "
+                                  "`measurement` (a measurement-grade array) or `none`", choices=HardwareProfile,
+                          new=True)
+    gain_db: Dist = dist(0.0, "each capsule's gain off nominal (its sensitivity's tolerance), per capsule",
+                         unit="dB", ge=-20.0, le=20.0, new=True)
+    delay_us: Dist = dist(0.0, "each capsule's delay off nominal (its phase mismatch as a delay), per capsule",
+                          unit="µs", ge=-1000.0, le=1000.0, new=True)
+    highpass_hz: Dist = dist(0.0, "each capsule's high-pass corner (-3 dB; a Butterworth of `highpass_order`, its "
+                                  "phase included), per capsule; 0: none", unit="Hz", ge=0.0, le=2000.0, new=True)
+    highpass_order: int = option(2, "the high-pass's order (6 dB per octave each)", ge=1, le=4, new=True)
+    tilt_db: Dist = dist(0.0, "each capsule's spectral tilt about 1 kHz (magnitude only, flat below 50 Hz), per "
+                              "capsule", unit="dB/octave", ge=-6.0, le=6.0, new=True)
+    response: str = option("", "a measured frequency response, a CSV of `frequency_hz` and one gain column (dB; "
+                               "every capsule) or one per capsule, magnitude only, on top of the rest; read when "
+                               "planning, so recipes hold it", path=True, new=True)
+    self_noise_dba: Dist = dist(0.0, "each capsule's self-noise (white), A-weighted, as the datasheet gives it; 0: "
+                                     "none", unit="dB SPL(A)", ge=0.0, le=120.0, new=True)
+    sensitivity_dbfs: float = option(-26.0, "the level a 94 dB SPL (1 Pa) tone reaches in the audio: turns "
+                                            "`self_noise_dba` into full scale (a digital MEMS capsule: -26 dBFS)",
+                                     unit="dBFS at 94 dB SPL", ge=-80.0, le=0.0, new=True)
+    devices: tuple = option((), "the device each capsule belongs to, e.g. `[0, 0, 1, 1]` for two stereo pairs: "
+                                "every device after the first gets its own clock (`clock_offset_us`, "
+                                "`clock_ppm`); empty: one device", new=True)
+    clock_offset_us: Dist = dist(0.0, "how far a device's channels lag the first device's at the start, per device",
+                                 unit="µs", ge=-1e6, le=1e6, new=True)
+    clock_ppm: Dist = dist(0.0, "how much slower a device's clock runs than the first device's: its lag grows by "
+                                "this many µs per second, per device", unit="ppm", ge=-1000.0, le=1000.0, new=True)
+
+    @property
+    def on(self) -> bool:
+        """Whether any capsule or clock differs from the ideal (the layer runs)."""
+        ideal = type(self)()
+        return any(getattr(self, k) != getattr(ideal, k) for k in HARDWARE_DRAWN) or bool(self.response)
+
+
+# what turns the hardware layer on (the rest says how what is drawn is applied)
+HARDWARE_DRAWN = ("gain_db", "delay_us", "highpass_hz", "tilt_db", "self_noise_dba", "clock_offset_us", "clock_ppm")
+
+# hardware.profile: the raw values it gives every [hardware] key a config leaves unset
+HARDWARE_PROFILES = {
+    # digital MEMS capsules on one board, one clock (datasheets of Knowles SPH0645 /
+    # Infineon IM69D class parts; boards roll off below 100-200 Hz)
+    "mems": {"gain_db": ["uniform", -1.0, 1.0], "delay_us": ["uniform", -5.0, 5.0],
+             "highpass_hz": ["uniform", 80.0, 200.0], "tilt_db": ["uniform", -0.5, 0.5],
+             "self_noise_dba": ["uniform", 29.0, 33.0], "sensitivity_dbfs": -26.0,
+             "clock_offset_us": ["uniform", -100.0, 100.0], "clock_ppm": ["uniform", -20.0, 20.0]},
+    # matched measurement capsules on one interface, word clock shared between devices
+    "measurement": {"gain_db": ["uniform", -0.2, 0.2], "delay_us": ["uniform", -0.5, 0.5],
+                    "highpass_hz": ["uniform", 5.0, 10.0], "tilt_db": ["uniform", -0.05, 0.05],
+                    "self_noise_dba": ["uniform", 15.0, 20.0], "sensitivity_dbfs": -32.0,
+                    "clock_offset_us": ["uniform", -2.0, 2.0], "clock_ppm": ["uniform", -0.5, 0.5]},
+}
+
+
+@dataclass(frozen=True)
 class RecordedConfig:
     """Scenes cut from real recordings of a SELD dataset in the DCASE layout (`corpus.dir`:
     STARSS23 and the like), instead of rendered (docs/recorded.md). Each window of
@@ -340,9 +419,9 @@ class RecordedConfig:
                                   "`custom` (your own recordings: give `ontology`), or `none` (rendered scenes)",
                           choices=RecordedSet, new=True)
     hop: float = option(0.0, "step between windows; 0: the window length (`audio.duration`), so windows do not "
-                             "overlap", unit="s", ge=0.0, new=True)
+                             "overlap", unit="s", ge=0.0, le=3600.0, new=True)
     min_active: float = option(1.0, "a source becomes a target when it is active at least this long in the window",
-                               unit="s", gt=0.0, new=True)
+                               unit="s", gt=0.0, le=600.0, new=True)
     ontology: str = option("", "a file of your classes and their captions (CSV `index,name,captions` with the captions "
                                "joined by a vertical bar, or JSON); empty: the dataset's built-in classes", path=True, new=True)
     columns: tuple = option((), "the label CSV's columns, when they are not the set's own: names from `frame`, "
@@ -359,7 +438,7 @@ class OutputConfig:
     """How scenes are stored."""
 
     shard_size: int = option(128, "scenes per shard (a 10 s 4-channel 24 kHz float32 scene is 3.84 MB)",
-                             unit="scenes", ge=1)
+                             unit="scenes", ge=1, le=100_000)
     audio: str = option("float32", "how shards store audio: `float32`; `int16` (half the bytes, rounding at about "
                                    "-101 dBFS); `flac` (lossless over int16, about a third of float32's bytes); every "
                                    "coding reads back as float32 (docs/format.md)", choices=AudioCoding,
@@ -377,7 +456,8 @@ class Config:
     and ``dataset.json``."""
 
     name: str = option("custom", "a label stored in `dataset.json`")
-    seed: int = option(0, "the dataset seed: every scene's draws come from (seed, split, index)", ge=0)
+    seed: int = option(0, "the dataset seed: every scene's draws come from (seed, split, index)", ge=0,
+                       le=2**32 - 1)
     on_bad_clip: str = option("skip", "`skip`: leave bad clips out and list them in `bad_clips.jsonl`; `fail`: "
                                       "stop before rendering", choices=BadClipPolicy)
     corpus: CorpusConfig = field(default_factory=CorpusConfig)
@@ -389,6 +469,7 @@ class Config:
     sources: SourcesConfig = field(default_factory=SourcesConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     recorded: RecordedConfig = field(default_factory=RecordedConfig)
+    hardware: HardwareConfig = field(default_factory=HardwareConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
     def to_dict(self, every_key: bool = False) -> dict:
@@ -397,7 +478,9 @@ class Config:
         d = jsonable(self)
         if not every_key:
             for name, sec in ((sec, getattr(self, sec)) for sec in SECTIONS):
-                _drop_unset(sec, d[name])
+                # keys a hardware profile fills are kept even at their default: read back,
+                # the config must not take the profile's value for a key it set to the default
+                _drop_unset(sec, d[name], keep=HARDWARE_PROFILES.get(getattr(sec, "profile", None), ()))
                 if name in NEW_SECTIONS and not d[name]:
                     del d[name]  # a section added later, left unset: datasets made without it keep their bytes
             for name, sp in self.splits.items():
@@ -413,19 +496,52 @@ class Config:
         return tuple(name for name, sp in self.splits.items() if sp.count)
 
 
+@dataclass(frozen=True)
+class CommandOptions:
+    """The numeric options of commands that are no config key, bounded as the keys are
+    (``--tolerance``, ``--max-scenes``, ``--workers``, an export's ``--shard-size``, ...):
+    the command line reads their bounds here (cli/options.Bounded), so ``nan``, ``inf`` and
+    ``-1`` are refused in one line. An option that sets a config key (``--seed``,
+    ``bank build --fs``) is bounded by that key."""
+
+    workers: int = option(0, "processes (0: one per core)", unit="processes", ge=0, le=4096)
+    tolerance: float = option(20.0, "`tsel verify`'s agreement threshold", unit="deg", gt=0.0, le=180.0)
+    max_scenes: int = option(0, "`tsel verify` checks the first N scenes of each split", unit="scenes", ge=1,
+                             le=10**9)
+    fail_under: float = option(0.0, "`tsel verify` fails under this agreement rate", unit="(0-1)", ge=0.0, le=1.0)
+    scenes: int = option(24, "scenes of `tsel inspect --sheet`", unit="scenes", ge=1, le=10_000)
+    rooms: int = option(2, "rooms of `tsel bank build`", unit="rooms", ge=1, le=1000)
+    step: float = option(5.0, "azimuth step along a ring of `tsel bank build`", unit="deg", gt=0.0, le=90.0)
+    rir_seconds: float = option(0.0, "RIR length of `tsel bank build`", unit="s", gt=0.0, le=60.0)
+    batch: int = option(256, "captions per batch of `tsel corpus embed`", unit="captions", ge=1, le=1_000_000)
+    shard_bytes: int = option(500_000_000, "an export's `--shard-size`", unit="bytes", ge=1000, le=10**13)
+
+
+def declared(key: str):
+    """The schema's field of ``key``: a config key (``audio.fs``, ``seed``) or a command
+    option of :class:`CommandOptions` (``tolerance``)."""
+    section, _, name = key.rpartition(".")
+    owner = SECTIONS.get(section) if section else (Config if key in TOP_FIELDS else CommandOptions)
+    found = {f.name: f for f in fields(owner)}.get(name) if owner else None
+    if found is None:
+        raise KeyError(f"no setting {key!r} in the config schema")
+    return found
+
+
 SECTIONS = {
     "corpus": CorpusConfig, "audio": AudioConfig, "scene": SceneConfig, "room": RoomConfig,
     "array": ArrayConfig, "sources": SourcesConfig, "noise": NoiseConfig, "recorded": RecordedConfig,
-    "output": OutputConfig,
+    "hardware": HardwareConfig, "output": OutputConfig,
 }
-NEW_SECTIONS = {"noise", "recorded"}
+NEW_SECTIONS = {"noise", "recorded", "hardware"}
 TOP_KEYS = ("name", "seed", "on_bad_clip", "splits", *SECTIONS)
 TOP_FIELDS = ("name", "seed", "on_bad_clip")
 
 
-def _drop_unset(section, d: dict) -> None:
-    """Remove from ``d`` (a section as plain data) the ``new`` keys left at their default."""
+def _drop_unset(section, d: dict, keep=()) -> None:
+    """Remove from ``d`` (a section as plain data) the ``new`` keys left at their default
+    (but those in ``keep``)."""
     default = type(section)()
     for f in fields(section):
-        if f.metadata.get("new") and getattr(section, f.name) == getattr(default, f.name):
+        if f.metadata.get("new") and f.name not in keep and getattr(section, f.name) == getattr(default, f.name):
             d.pop(f.name, None)

@@ -6,7 +6,8 @@ import json
 import textwrap
 from dataclasses import fields
 
-from .schema import SECTIONS, TOP_FIELDS, Config, SplitConfig
+from ..core.jsonable import jsonable
+from .schema import HARDWARE_PROFILES, SECTIONS, TOP_FIELDS, Config, SplitConfig
 
 
 def to_toml(cfg: Config, comments: bool = False, header: str = "") -> str:
@@ -23,8 +24,9 @@ def to_toml(cfg: Config, comments: bool = False, header: str = "") -> str:
     for sec, cls in SECTIONS.items():
         lines += ["", f"[{sec}]"] + (_wrap(cls.__doc__) if comments and cls.__doc__ else [])
         specs = {f.name: f for f in fields(cls)}
+        unset = _profile_keys(cfg) if sec == "hardware" else ()
         for k, v in d[sec].items():
-            lines += _entry(k, v, specs[k], comments)
+            lines += _entry(k, v, specs[k], comments, unset=k in unset)
     split_specs = {f.name: f for f in fields(SplitConfig)}
     for name, sp in d["splits"].items():
         lines += ["", f"[splits.{name}]"]
@@ -33,8 +35,18 @@ def to_toml(cfg: Config, comments: bool = False, header: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def _entry(key: str, value, f, comments: bool) -> list[str]:
-    line = f"{key} = {_toml_value(value)}"
+def _profile_keys(cfg: Config) -> set:
+    """``[hardware]`` keys at their default that a profile would fill: written commented out,
+    so setting ``profile`` in the file fills them (no profile: they read back the same)."""
+    if cfg.hardware.profile in HARDWARE_PROFILES:
+        return set()
+    default = jsonable(type(cfg.hardware)())
+    now = jsonable(cfg.hardware)
+    return {k for k in next(iter(HARDWARE_PROFILES.values())) if now[k] == default[k]}
+
+
+def _entry(key: str, value, f, comments: bool, unset: bool = False) -> list[str]:
+    line = f"{'# ' if unset else ''}{key} = {_toml_value(value)}"
     if not comments:
         return [line]
     unit = f.metadata.get("unit")

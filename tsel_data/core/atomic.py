@@ -16,7 +16,8 @@ import json
 import os
 from contextlib import contextmanager
 
-from ..errors import WriteError, broken_link, shown_path
+from ..errors import TselError, WriteError, broken_link, shown_path
+from .files import blocked_folder, replace_problem
 from .jsonable import jsonable
 from .libc import libc
 
@@ -26,7 +27,9 @@ def atomic_output(path: str, what: str | None = None):
     """``with atomic_output(path) as tmp:`` write ``tmp``; it becomes ``path`` when the
     block ends without error, and disappears otherwise. Write failures (OSError, and the
     RuntimeError some libraries raise for a full disk) become one WriteError line
-    naming ``what`` (default: the path)."""
+    naming ``what`` (default: the path). A device, FIFO, socket or folder at ``path`` is
+    never replaced (core/files.replace_problem)."""
+    refuse_special(path, what)
     remove_stale_tmp(path)
     tmp = f"{path}.tmp-{os.getpid()}"
     try:
@@ -41,6 +44,14 @@ def atomic_output(path: str, what: str | None = None):
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
+
+
+def refuse_special(path: str, what: str | None = None) -> None:
+    """A TselError when ``path`` is a device, FIFO, socket or folder: whatever asked for
+    the write (``--force`` too), a file never takes its place."""
+    why = replace_problem(path)
+    if why:
+        raise TselError(f"{what or shown_path(path)} {why}")
 
 
 def _looks_like_io(e: Exception) -> bool:
@@ -67,6 +78,7 @@ def atomic_write(path: str, data: bytes) -> None:
 def write_text(path: str, text: str) -> None:
     """Write a text file atomically (:func:`atomic_write`), removing temporary files of
     killed writers first; a failed write is one WriteError line naming the file."""
+    refuse_special(path)
     remove_stale_tmp(path)
     try:
         atomic_write(path, text.encode("utf-8"))
@@ -216,6 +228,9 @@ def _missing_folder(filename: str, folder: str) -> tuple[str, str] | None:
                 return f"{shown_path(p)} {link}", "create what it points to, or remove the link"
             p = os.path.dirname(p)
     if folder and not os.path.isdir(folder):
+        blocked = blocked_folder(folder)  # a file, a FIFO, a device where a folder should be
+        if blocked:
+            return blocked, "choose a folder, or write elsewhere"
         return f"the folder {shown_path(folder)} does not exist", "create it or write elsewhere"
     return None
 

@@ -79,13 +79,14 @@ class JsonFields:
     def _codec(cls) -> list:
         found = JsonFields._codecs.get(cls)
         if found is None:
-            found = JsonFields._codecs[cls] = [(f.name, *f.metadata.get(_CODEC, (None, None, None, _NONE)))
-                                              for f in fields(cls)]
+            found = JsonFields._codecs[cls] = [(f.name, *f.metadata.get(_CODEC, (None, None, None, _NONE)),
+                                                json_types(f.type, f.metadata.get(_CODEC, (0, 0, None))[2] is not None))
+                                               for f in fields(cls)]
         return found
 
     def to_json(self) -> dict:
         out = {}
-        for name, omit, encode, _, _ in self._codec():
+        for name, omit, encode, _, _, _ in self._codec():
             if omit is not None and omit(self):
                 continue
             value = getattr(self, name)
@@ -94,13 +95,23 @@ class JsonFields:
 
     @classmethod
     def from_json(cls, d: dict | None):
+        """The object of the JSON form ``d``; ValueError naming the key when ``d`` is not an
+        object or a key holds another JSON type than its field's (a string for a list:
+        a file damaged or written by hand), so nothing of the wrong shape is built."""
         d = d or {}
+        if not isinstance(d, dict):
+            raise ValueError(f"expected a JSON object, got {_json_name(d)}")
         kw = {}
-        for name, _, _, decode, missing in cls._codec():
+        for name, _, _, decode, missing, types in cls._codec():
             if name in d:
-                kw[name] = decode(d[name]) if decode is not None else d[name]
+                value = d[name]
+                if types is not None and (not isinstance(value, types) or isinstance(value, bool) and bool not in types):
+                    raise ValueError(f"key {name!r} holds {_json_name(value)}, not {_names(types)}")
+                kw[name] = decode(value) if decode is not None else value
             elif missing is not _NONE:
                 kw[name] = missing
+            elif name in _required(cls):
+                raise ValueError(f"no key {name!r}")
         return cls(**kw)
 
     # recipes' names for the same pair (a recipe's ``to_json`` is its JSON line)
@@ -110,3 +121,43 @@ class JsonFields:
     @classmethod
     def from_dict(cls, d: dict | None):
         return cls.from_json(d)
+
+
+def _required(cls) -> set:
+    """The fields of ``cls`` without a default: keys its JSON must have."""
+    found = _REQUIRED.get(cls)
+    if found is None:
+        found = _REQUIRED[cls] = {f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING}
+    return found
+
+
+_REQUIRED: dict = {}
+# the JSON types of a field's annotation (written as text: ``from __future__ import annotations``)
+_JSON_TYPES = {"str": (str,), "int": (int,), "float": (int, float), "bool": (bool,), "list": (list,),
+               "tuple": (list,), "dict": (dict,), "None": (type(None),)}
+
+
+def json_types(annotation, decoded: bool = False) -> tuple | None:
+    """The JSON types a field of ``annotation`` may hold (``"float | None"`` -> int, float,
+    None), or None when it names a class of its own (its decoder checks it). A field
+    with a decoder may also be null (decoders read null as empty)."""
+    out: tuple = ()
+    for part in str(annotation).split("|"):
+        part = part.strip().split("[", 1)[0]
+        if part not in _JSON_TYPES:
+            return None
+        out += _JSON_TYPES[part]
+    if decoded:
+        out += (type(None),)
+    return tuple(dict.fromkeys(out))
+
+
+def _json_name(value) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean", type(None): "null"}.get(
+        type(value), "a number" if isinstance(value, (int, float)) else type(value).__name__)
+
+
+def _names(types: tuple) -> str:
+    names = dict.fromkeys({dict: "an object", list: "a list", str: "a string", bool: "a boolean", int: "a number",
+                           float: "a number", type(None): "null"}[t] for t in types)
+    return " or ".join(names)

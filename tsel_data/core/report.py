@@ -27,13 +27,17 @@ class CheckReport:
     warnings: list = field(default_factory=list)
     bad_clips: list = field(default_factory=list)
     facts: dict = field(default_factory=dict)
+    _said: set = field(default_factory=set, repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
         return not self.errors
 
     def error(self, e: TselError | str, cls=TselError) -> None:
-        self.errors.append(e if isinstance(e, TselError) else cls(e))
+        """Note a problem; the same line found twice (per split, per scene) is said once."""
+        if str(e) not in self._said:
+            self._said.add(str(e))
+            self.errors.append(e if isinstance(e, TselError) else cls(e))
 
     def messages(self) -> list[str]:
         return [str(e) for e in self.errors]

@@ -4,6 +4,6 @@ and levels (``audio``), prepared clips and remembered clip checks (``prepared``,
 ``clipcache``), captions and their similarity (``captions``, with the sound-event
 vocabulary behind it in ``lexicon``), and recorded room noise (``ambience``).
 
-Import order: ``clip``, ``lexicon``, ``prepared``, ``ambience``; ``audio`` uses ``prepared``,
-``clipcache`` ``audio``, ``captions`` ``lexicon``; ``manifests/`` uses ``clip``, ``demo/`` ``audio``.
+Import order: ``clip``, ``lexicon``, ``prepared``; ``audio`` uses ``prepared``,
+``ambience`` and ``clipcache`` ``audio``, ``captions`` ``lexicon``; ``manifests/`` uses ``clip``, ``demo/`` ``audio``.
 """

@@ -60,7 +60,9 @@ from pathlib import Path
 import numpy as np
 import soundfile as sf
 
+from ..core.files import check_input
 from ..errors import ConfigError
+from .audio import SILENT_PEAK
 from ..receivers import canonical
 
 # The tag in a TAU-SNoise_DB file name (ambience_<tag>_24k_edited.wav) -> the receiver it
@@ -144,6 +146,7 @@ class Recording:
 def read_segment(path: str, offset: int, n_samples: int, frames: int | None = None) -> np.ndarray:
     """Samples ``offset`` … ``offset + n_samples`` of an ambience recording, float32 [C, n]
     (only those are read); ConfigError for an unreadable, truncated or non-finite file."""
+    check_input(path, ConfigError, "an ambience recording is a file")
     try:
         x, _ = sf.read(path, start=offset, stop=offset + n_samples, dtype="float32", always_2d=True)
     except (sf.LibsndfileError, RuntimeError, OSError) as e:
@@ -215,6 +218,7 @@ def find_ambience(root, channels: int, fs: int, fmt: str | None = None,
     if not base.exists():
         raise ConfigError(f"ambience folder {base} not found; point at the TAU-SNoise_DB folder (room folders "
                           f"01_bomb_center …) or at a folder of recordings")
+    check_input(base, ConfigError, "point at the TAU-SNoise_DB folder or at a folder of recordings", folder=True)
     if not base.is_dir():
         raise ConfigError(f"ambience {base} is not a folder; point at the TAU-SNoise_DB folder or at a folder "
                           f"of recordings")
@@ -323,6 +327,22 @@ def _pick(d: Path, fmt, want) -> Path:
                           f"{files[1].name} …); keep one per room folder, or put them all in one flat folder "
                           f"to use them for any room")
     return files[0]
+
+
+def check_sounds(path, fs: int) -> None:
+    """ConfigError when the recording is silent throughout (peak below -100 dBFS): no gain
+    puts silence at an SNR, and every scene would record none. Read a second at a time,
+    up to the first that sounds (the first, for any real recording); discovery itself
+    reads headers only."""
+    try:
+        with sf.SoundFile(str(path)) as f:
+            for block in f.blocks(blocksize=int(fs), dtype="float32", always_2d=True):
+                if block.size and float(np.max(np.abs(block))) >= SILENT_PEAK:
+                    return
+    except (sf.LibsndfileError, RuntimeError, OSError) as e:
+        raise ConfigError(f"cannot read ambience {path}: {_first_line(e)}; replace the file or remove it") from None
+    raise ConfigError(f"ambience {path} is silent (peak below -100 dBFS throughout); no gain gives silence an SNR: "
+                      f"replace it or remove it")
 
 
 def _tau_name(tag: str) -> str:

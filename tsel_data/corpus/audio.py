@@ -16,6 +16,7 @@ import numpy as np
 import soundfile as sf
 
 from ..core.atomic import atomic_output
+from ..core.files import check_input, path_problem
 from ..errors import AudioError, DatasetError
 from .prepared import REMAKE, lookup, prepared_path, stamp_of, write_prepared
 
@@ -57,8 +58,7 @@ def sample_problem(x: np.ndarray) -> str | None:
 
 def load_clip(path: str, fs: int, duration: float, offset: float = 0.0) -> np.ndarray:
     """Mono float32 [round(duration·fs)] at ``fs``: read, downmix, resample, pad with zeros or cut."""
-    if os.path.exists(path) and not os.path.isfile(path):  # a FIFO would block forever
-        raise AudioError(f"{path} is not a regular file (a pipe, device or socket); point the manifest at an audio file")
+    check_input(path, AudioError, "point the manifest at an audio file")  # a FIFO would block forever
     try:
         with sf.SoundFile(path) as f:
             sr = f.samplerate
@@ -196,10 +196,11 @@ def check_clip(clip_id: str, path: str, level: str, min_duration: float, max_cha
     resample or mix down gets its prepared form (corpus/prepared.py) from this same decode.
     Without it, a prepared form that exists is checked (:func:`keep_prepared`).
     """
-    if os.path.exists(path) and not os.path.isfile(path):
-        return ClipCheck(clip_id, f"{path} is not a regular file (a pipe, device or socket)")
-    if not os.path.isfile(path):
+    problem = path_problem(path)  # judged by its mode: a FIFO or device is never opened
+    if problem == "does not exist":
         return ClipCheck(clip_id, f"audio file not found: {path}", missing=True)
+    if problem:
+        return ClipCheck(clip_id, f"{path} {problem}")
     if level == "exists":
         return ClipCheck(clip_id, None)
     if os.path.getsize(path) == 0:

@@ -30,7 +30,8 @@ import re
 import numpy as np
 
 from ..errors import ConfigError
-from .lexicon import concepts, weight
+from ..core.files import check_input
+from .lexicon import BROAD, NAMED, concepts, weight
 
 _WORD = re.compile(r"[a-z0-9']+")
 STOPWORDS = frozenset(
@@ -115,9 +116,32 @@ def answerable_queries(target_captions, other_captions, max_sim: float) -> list[
     return [c for c in target_captions if c in out[0] and c in out[1]]
 
 
+def sound_events(captions) -> frozenset[str]:
+    """The sound events a clip's ``captions`` (one caption, or several) name together: their
+    lexicon concepts that the table knows (:mod:`tsel_data.corpus.lexicon`), broad terms
+    (person, vehicle, water, animal) aside. "A telephone rings" names {phone, bell}, "A
+    large bell tolls" {bell}, "Footsteps on a hard floor" {footstep}."""
+    if isinstance(captions, str):
+        captions = (captions,)
+    return frozenset(c for cap in captions for c in concepts(cap) if c in NAMED and c not in BROAD)
+
+
+def same_kind(query_events: frozenset, target_events: frozenset, other_events: frozenset) -> bool:
+    """Whether another clip fits a composite query's caption as a sound of the target's kind:
+    it names every sound event the query caption names, and none the target clip does not
+    (query ⊆ other ⊆ target, as sets of :func:`sound_events`). "A telephone rings" and "A
+    bell rings" share the lexicon's bell (to ring) but not the phone: not of a kind; a clip
+    of bells and a car horn is not of a bell clip's kind either. A caption that names no
+    event of the table constrains nothing (the similarity band alone decides)."""
+    if not query_events:
+        return True
+    return query_events <= other_events <= (target_events | query_events)
+
+
 def load_embeddings(path: str) -> dict[str, np.ndarray]:
     """caption -> unit vector from an ``.npz`` with ``captions`` [N] str and ``vectors``
     [N, D] (ConfigError naming the file on any problem)."""
+    check_input(path, ConfigError, "give the .npz of `tsel corpus embed`")
     try:
         with np.load(path, allow_pickle=False) as z:
             caps, vecs = z["captions"], z["vectors"]

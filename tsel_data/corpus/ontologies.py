@@ -20,6 +20,7 @@ import os
 from dataclasses import dataclass
 
 from ..errors import ConfigError
+from ..core.files import check_input
 
 
 @dataclass(frozen=True)
@@ -97,6 +98,7 @@ def read_ontology(path: str) -> Ontology:
     the file and row when it is not one."""
     if os.path.isdir(path):
         raise ConfigError(f"ontology {path} is a folder; give a CSV (index,name,captions) or a JSON file")
+    check_input(path, ConfigError, "give a CSV (index,name,captions) or a JSON file")
     if not os.path.isfile(path):
         raise ConfigError(f"ontology file {path} not found; give a CSV (index,name,captions) or a JSON file")
     try:

@@ -40,6 +40,7 @@ import os
 import numpy as np
 
 from ..core.atomic import atomic_output
+from ..core.files import is_regular
 from ..core.digest import sha256_file
 from ..core.usercache import cache_dir, folder_usage
 
@@ -99,7 +100,7 @@ def lookup(path: str, stamp: tuple, fs: int, duration: float, offset: float,
     returned as stored; their plausibility is the caller's (audio.sample_problem).
     """
     p = prepared_path(path, stamp, fs, duration, offset)
-    if p is None or not os.path.isfile(p):
+    if p is None or not is_regular(p) or not is_regular(record_path(p)):  # a FIFO in the cache is no prepared clip
         return "absent", None, ""
     try:
         with open(record_path(p), encoding="utf-8") as f:

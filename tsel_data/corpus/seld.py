@@ -34,6 +34,7 @@ import numpy as np
 from ..choices import RecordedSet
 from ..core.geometry import sph_to_cart
 from ..errors import ConfigError
+from ..core.files import check_input
 from .ontologies import STARSS, TAU_NIGENS_2020, TAU_NIGENS_2021, Ontology
 
 FRAME_HOP = 0.1  # s: every DCASE SELD label frame
@@ -224,6 +225,7 @@ def read_labels(path: str, seld: SeldSet, ontology: Ontology | None, override: t
     want = " or ".join(str(w) for w in widths)
     rows = {k: [] for k in ("frame", "class", "source", "azimuth", "elevation", "distance")}
     seen: set = set()
+    check_input(path, ConfigError, "a label file is a CSV file")
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:  # a spreadsheet's byte-order mark
             lines = list(csv.reader(f))

@@ -4,5 +4,6 @@ the direct path it moves between knots, ``delaypath``, and its stored fractional
 filters, ``farrow_table``), and features for trainers (``features``: GCC-PHAT, spectra).
 
 Import order: ``fft``, ``realfft``, ``farrow_table``, ``features``; ``delaypath`` uses
-``fft`` and ``farrow_table``; ``timevarying`` uses ``delaypath``.
+``fft`` and ``farrow_table``; ``timevarying`` and ``hardware`` (microphones as built,
+applied to audio) use ``delaypath``.
 """

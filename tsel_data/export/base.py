@@ -26,6 +26,7 @@ is here.
 from __future__ import annotations
 
 import json
+import math
 import os
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
@@ -34,9 +35,11 @@ from typing import Callable, ClassVar
 from ..core.atomic import atomic_output, write_json, write_text
 from ..core.progress import bar
 from ..core.version import __version__
+from ..core.files import check_input, inside, name_problem, replace_problem
 from ..errors import DatasetError, TselError, broken_link
 from ..store.dataset import DatasetDoc, load_dataset_doc
-from ..store.layout import EXPORT_MANIFEST_FILE, Layout
+from ..store.layout import EXPORT_LOCK_FILE, EXPORT_MANIFEST_FILE, Layout
+from ..store.lock import export_lock
 from ..store.outputs import foreign_file, refuse_inside, stamp
 from ..store.reader import SceneDataset, open_dataset
 from ..tools.stats import SplitTally, dataset_stats
@@ -51,7 +54,9 @@ MANIFEST_VERSION = 2  # 2: stamps of the files (version 1 manifests own their fi
 class WriterOption:
     """One option of a writer, declared once: the command line (``--name-with-dashes``)
     and the Python keyword (``name``) both follow. ``parse`` turns the command line's
-    text into the value (a TselError for a bad one); ``flag``: a boolean switch."""
+    text into the value (a TselError for a bad one); ``flag``: a boolean switch; ``bound``:
+    the setting of the config schema whose bounds the command line holds it to
+    (``config.schema.CommandOptions``)."""
 
     name: str
     help: str
@@ -59,6 +64,7 @@ class WriterOption:
     choices: tuple = ()
     parse: Callable | None = None
     flag: bool = False
+    bound: str = ""
 
 
 def parse_size(text) -> int:
@@ -72,7 +78,7 @@ def parse_size(text) -> int:
             value = float(s[:-1] if s[-1:] in "KMGT" else s) * scale
         except ValueError:
             value = -1.0
-    if value < 1:
+    if not math.isfinite(value) or value < 1:
         raise TselError(f"size {text!r}: expected bytes or a number with KB, MB or GB, e.g. 500MB")
     return int(value)
 
@@ -169,7 +175,7 @@ class ExportJob:
         self.all_splits = list(self.doc.splits)
         self.identity = {"kind": writer.name, "dataset": _portable(root, out), **writer.identity(self.doc)}
         self.earlier = _earlier(out, writer, self.identity, root, force)
-        self._ours = _files_of(self.earlier) | _journal(out)
+        self._ours = _files_of(self.earlier) | _journal(out, force)
         self._stamps = dict((self.earlier or {}).get("stamps") or {})
         self._claimed: set = set()
         self._journal = None
@@ -189,7 +195,7 @@ class ExportJob:
         card's statistics as they go, and the card does not read them again."""
         tally = SplitTally(self.root, ds.split) if self.writer.opts.get("card") else None
         for i in range(len(ds)):
-            scene = ds.get(i, audio=audio)
+            scene = ds.finite(ds.get(i, audio=audio))
             if tally is not None:
                 tally.add(scene)
             yield scene
@@ -210,8 +216,15 @@ class ExportJob:
     # --- writing ----------------------------------------------------------------------
     def path(self, rel: str) -> str:
         """The full path of ``rel``, claimed for this export: a DatasetError when a file
-        is there that no export of this kind wrote (unless ``force``)."""
-        full = os.path.join(self.out, rel)
+        is there that no export of this kind wrote (unless ``force``), or when ``rel``
+        would leave the folder (a name made from a document: a split of dataset.json)."""
+        try:
+            full = inside(self.out, rel)
+        except ValueError as e:
+            why = ("a symbolic link in --out leads elsewhere: remove it, or choose another --out"
+                   if name_problem(rel) is None else "is dataset.json edited?")
+            raise DatasetError(f"{self.root}: the export would write {rel!r}, which {e}; an export writes only inside "
+                               f"--out: {why}") from None
         if rel not in self._claimed:
             self.check_free(rel)
             self._journal_line(rel)
@@ -221,7 +234,11 @@ class ExportJob:
 
     def check_free(self, rel: str) -> None:
         """A DatasetError unless ``rel`` may be written: absent, this export's own, or ``force``
-        (a writer calls it in :meth:`Writer.check` for files it writes last)."""
+        (a writer calls it in :meth:`Writer.check` for files it writes last). A device,
+        FIFO, socket or folder under the name is never written over, not even with ``force``."""
+        special = replace_problem(os.path.join(self.out, rel))
+        if special:
+            raise DatasetError(f"{os.path.join(self.out, rel)} {special}")
         if os.path.lexists(os.path.join(self.out, rel)) and not self.force:
             why = self._not_ours(rel)
             if why:
@@ -288,7 +305,7 @@ class ExportJob:
         """Claim the folder: files an interrupted run left of splits it did not finish go
         (they would be rewritten anyway), then the manifest says whose the folder is."""
         os.makedirs(self.out, exist_ok=True)
-        self._remove(_journal(self.out) - _files_of(self.earlier))
+        self._remove(_journal(self.out, self.force) - _files_of(self.earlier))
         self._ours = _files_of(self.earlier)
         self._write_manifest(complete=False)
         self._journal = open(os.path.join(self.out, JOURNAL_FILE), "w", encoding="utf-8")
@@ -394,17 +411,43 @@ def run_export(writer: Writer, root: str, out: str, splits=None, force: bool = F
         if s not in all_splits:
             raise DatasetError(f"{root}: no split {s!r}; available splits: {', '.join(all_splits)}")
     _check_places(root, out, force)
-    job = ExportJob(writer, root, out, splits, force, progress)
-    writer.check(job)
-    for rel, wanted in ((CARD_FILE, writer.opts["card"]), (FIGURE_FILE, writer.opts["figure"])):
-        if wanted:  # written last: refused before the splits, not after
-            job.check_free(rel)
-    job.begin()
-    results = {split: job.write_split(split) for split in splits}
-    shared = writer.finish(job)
-    job.end(shared)
+    with _locked(out) as begun:
+        job = ExportJob(writer, root, out, splits, force, progress)
+        writer.check(job)
+        for rel, wanted in ((CARD_FILE, writer.opts["card"]), (FIGURE_FILE, writer.opts["figure"])):
+            if wanted:  # written last: refused before the splits, not after
+                job.check_free(rel)
+        begun.append(True)
+        job.begin()
+        results = {split: job.write_split(split) for split in splits}
+        shared = writer.finish(job)
+        job.end(shared)
     return ExportResult(out, writer.name, {s: r.summary for s, r in results.items()},
                         {s: r.files for s, r in results.items()}, shared)
+
+
+@contextmanager
+def _locked(out: str):
+    """Hold ``out``'s export lock for the run (store/lock.py): a second export into the
+    same folder is refused, never mixed with this one. A run refused before it writes
+    anything leaves the folder as it found it: the lock file it made goes, and the folder
+    too if it made that. Yields a list the run appends to once it writes."""
+    made = not os.path.lexists(out)
+    os.makedirs(out, exist_ok=True)
+    lock_file = os.path.join(out, EXPORT_LOCK_FILE)
+    had_lock = os.path.lexists(lock_file)
+    begun: list = []
+    with export_lock(out):
+        try:
+            yield begun
+        finally:
+            if not begun:  # refused before anything was written: leave no trace
+                for remove, path in ((os.remove, None if had_lock else lock_file), (os.rmdir, made and out)):
+                    try:
+                        if path:
+                            remove(path)
+                    except OSError:
+                        pass
 
 
 def _check_places(root: str, out: str, force: bool) -> None:
@@ -415,6 +458,8 @@ def _check_places(root: str, out: str, force: bool) -> None:
         raise DatasetError(f"--out {out} is inside the dataset {root}; choose a folder outside it")
     if os.path.isfile(out):
         raise DatasetError(f"--out {out} is a file; choose a folder")
+    if os.path.exists(out):
+        check_input(out, DatasetError, "choose a folder for --out", folder=True)
     if broken_link(out):
         raise DatasetError(f"--out {out} {broken_link(out)}; create the folder it points to, or choose another --out")
     if Layout(out).is_ours():
@@ -431,19 +476,36 @@ def _portable(root: str, out: str) -> str:
 
 def read_manifest(out: str) -> dict | None:
     """The manifest of the export in ``out`` (None when there is none; DatasetError when
-    it is unreadable)."""
+    it is unreadable, of the wrong shape, or names a file outside ``out``: a manifest can
+    come from anywhere, and the files it names are the ones an export replaces and removes)."""
     path = os.path.join(out, MANIFEST_FILE)
-    if not os.path.isfile(path):
+    if not os.path.lexists(path):
         return None
+    again = "export into a new --out, or pass --force to replace the export"
+    check_input(path, DatasetError, again)
     try:
         with open(path, encoding="utf-8") as f:
             doc = json.load(f)
-        if not isinstance(doc, dict) or not isinstance(doc.get("identity"), dict):
-            raise ValueError("no identity")
+        _check_manifest(doc)
         return doc
-    except (OSError, ValueError) as e:
-        raise DatasetError(f"{path} is unreadable ({e}); export into a new --out, or pass --force to replace "
-                           f"the export") from None
+    except (OSError, ValueError, RecursionError) as e:
+        raise DatasetError(f"{path} is unreadable ({e}); {again}") from None
+
+
+def _check_manifest(doc) -> None:
+    """ValueError unless ``doc`` has a manifest's shape and every name it lists stays in the folder."""
+    if not isinstance(doc, dict) or not isinstance(doc.get("identity"), dict):
+        raise ValueError("no identity")
+    splits, files, stamps = doc.get("splits") or {}, doc.get("files") or [], doc.get("stamps") or {}
+    if not isinstance(splits, dict) or not all(isinstance(v, dict) and isinstance(v.get("files", []), list)
+                                                for v in splits.values()):
+        raise ValueError("'splits' is not {split: {\"files\": [...]}}")
+    if not isinstance(files, list) or not isinstance(stamps, dict):
+        raise ValueError("'files' is not a list of names, or 'stamps' not an object")
+    for rel in [*files, *(r for v in splits.values() for r in v.get("files", [])), *stamps]:
+        why = name_problem(rel)
+        if why or rel in (MANIFEST_FILE, JOURNAL_FILE, EXPORT_LOCK_FILE):
+            raise ValueError(f"it lists {rel!r} as a file of the export, which {why or 'is the export’s own'}")
 
 
 def _earlier(out: str, writer: Writer, identity: dict, root: str, force: bool) -> dict | None:
@@ -458,7 +520,7 @@ def _earlier(out: str, writer: Writer, identity: dict, root: str, force: bool) -
             raise
         doc = None
     if doc is None:
-        held = sorted(n for n in os.listdir(out) if n != JOURNAL_FILE)
+        held = sorted(n for n in os.listdir(out) if n not in (JOURNAL_FILE, EXPORT_LOCK_FILE))
         if held and not force:
             raise DatasetError(f"{out} holds files that are not a tsel export ({', '.join(held[:3])}"
                                f"{', ...' if len(held) > 3 else ''}); export into a new or empty --out, or pass "
@@ -480,7 +542,7 @@ def _earlier(out: str, writer: Writer, identity: dict, root: str, force: bool) -
     if not force:
         raise DatasetError(f"{out} holds an export of another {', '.join(differ)}; adding this one would mix them: "
                            f"export into another --out, or pass --force to replace it")
-    _remove(out, _files_of(doc) | _journal(out) | {MANIFEST_FILE, JOURNAL_FILE})
+    _remove(out, _files_of(doc) | _journal(out, force) | {MANIFEST_FILE, JOURNAL_FILE})
     return None
 
 
@@ -493,30 +555,47 @@ def _files_of(doc: dict | None) -> set:
     return files
 
 
-def _journal_entries(out: str) -> list:
+def _journal_entries(out: str, force: bool = False) -> list:
+    """(split, file) of every claim in the journal; a name that would leave the folder is
+    refused (the journal is only ever written by an export: it was edited), or with
+    ``force`` left out (never removed)."""
     path = os.path.join(out, JOURNAL_FILE)
     entries = []
+    if not os.path.lexists(path):
+        return entries
+    check_input(path, DatasetError, "remove it: an export writes it as a file")
     try:
         with open(path, encoding="utf-8") as f:
-            for line in f:
+            for n, line in enumerate(f, 1):
                 try:
                     split, rel = json.loads(line)
-                    entries.append((split, rel))
-                except (ValueError, TypeError):
+                except (ValueError, TypeError, RecursionError):
                     continue  # a line cut by a kill: its file was never written
+                why = name_problem(rel)
+                if why and force:
+                    continue
+                if why:
+                    raise DatasetError(f"{path}:{n}: names {rel!r}, which {why}; an export writes only inside its "
+                                       f"folder: the journal was edited, remove it")
+                entries.append((split, rel))
     except OSError:
         pass
     return entries
 
 
-def _journal(out: str) -> set:
+def _journal(out: str, force: bool = False) -> set:
     """The files an interrupted run claimed."""
-    return {rel for _, rel in _journal_entries(out)}
+    return {rel for _, rel in _journal_entries(out, force)}
 
 
 def _remove(out: str, rels) -> None:
     for rel in sorted(rels):
-        path = os.path.join(out, rel)
+        try:
+            path = inside(out, rel)  # never a file outside the export, whatever its manifest says
+        except ValueError:
+            continue
+        if os.path.isdir(path) and not os.path.islink(path):
+            continue
         try:
             os.remove(path)
         except FileNotFoundError:

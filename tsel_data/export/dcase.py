@@ -30,6 +30,7 @@ import numpy as np
 from ..choices import WavSubtype, values
 from ..corpus.audio import save_wav
 from ..errors import DatasetError
+from ..core.files import check_input
 from ..receivers import receiver
 from ..formats.dcase import FRAME_HOP, dcase_rows
 from .base import SplitResult, Writer, WriterOption, run_export
@@ -115,6 +116,7 @@ class DcaseWriter(Writer):
 def _read_queries(out: str) -> list:
     """The query rows of the export already in ``out`` (ours: the manifest says so)."""
     path = os.path.join(out, QUERIES_FILE)
+    check_input(path, DatasetError, "export into a new --out")
     try:
         with open(path, newline="", encoding="utf-8") as f:
             rows = [tuple(r) for r in csv.reader(f)]

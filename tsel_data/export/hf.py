@@ -217,7 +217,7 @@ class HuggingFaceWriter(Writer):
     name = "hf"
     summary = "Hugging Face layout: Parquet audio shards (all channels), scenes and sources tables, the card."
     options = (WriterOption("shard_size", "Most bytes of audio per Parquet audio shard, the file and the samples "
-                            "counted uncompressed (e.g. 500MB).", DEFAULT_SHARD_SIZE, parse=parse_size),)
+                            "counted uncompressed (e.g. 500MB).", DEFAULT_SHARD_SIZE, parse=parse_size, bound="shard_bytes"),)
 
     def identity(self, doc) -> dict:
         # "hf layout" 2: the samples column and the undecoded Audio feature (1: neither,

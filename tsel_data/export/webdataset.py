@@ -115,7 +115,7 @@ class WebDatasetWriter(Writer):
     name = "webdataset"
     summary = "WebDataset tar shards: every channel in the dataset's own coding, labels, query and record as JSON."
     options = (WriterOption("shard_size", "Most bytes per tar shard (e.g. 500MB, 1GB).", DEFAULT_SHARD_SIZE,
-                            parse=parse_size),)
+                            parse=parse_size, bound="shard_bytes"),)
 
     def identity(self, doc) -> dict:
         return {**super().identity(doc), "audio coding": str(doc.raw.get("audio_coding", "float32"))}

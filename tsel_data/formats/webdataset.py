@@ -23,6 +23,7 @@ import tarfile
 import numpy as np
 
 from ..choices import AudioCoding
+from ..core.files import check_input, name_problem
 from ..errors import DatasetError
 from ..store.codings import INT16_SCALE, decode
 from ..store.extents import Extent
@@ -157,6 +158,7 @@ def iter_members(path: str):
     arrays, read straight into place (writable, no copy); others as bytes. PAX and GNU
     long names are followed; a damaged or cut header is a DatasetError naming the file."""
     pending = None
+    check_input(path, DatasetError, "a shard of a WebDataset export is a tar file")  # a FIFO never ends
     with open(path, "rb", buffering=1 << 16) as f:
         while True:
             head = f.read(BLOCK)
@@ -321,14 +323,25 @@ def scene_of_sample(key: str, sample: dict, with_record: bool = True) -> Scene:
 def read_index(folder: str) -> dict:
     """``index.json`` of a WebDataset export (DatasetError when absent or not ours)."""
     path = os.path.join(folder, INDEX_FILE)
+    check_input(path, DatasetError, "export again")
     try:
         with open(path, encoding="utf-8") as f:
             doc = json.load(f)
     except FileNotFoundError:
         raise DatasetError(f"{path} not found: {folder} is not a WebDataset export of tsel-data (`tsel export "
                            f"webdataset DIR --out {folder}` makes one), or give the shard files") from None
-    except (OSError, ValueError) as e:
+    except (OSError, ValueError, RecursionError) as e:
         raise DatasetError(f"{path} is unreadable ({e}); export again") from None
     if not isinstance(doc, dict) or doc.get("kind") != INDEX_KIND:
         raise DatasetError(f"{path} is not the index of a tsel-data WebDataset export")
+    try:  # the shards it names stay in the export
+        for split, v in doc["splits"].items():
+            for s in v["shards"]:
+                why = name_problem(s["file"])
+                if why:
+                    raise DatasetError(f"{path}: split {split}: shard {s['file']!r} {why}; the index was edited: "
+                                       f"export again")
+                int(s["scenes"])
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise DatasetError(f"{path} is not a complete index ({type(e).__name__}: {e}); export again") from None
     return doc

@@ -19,7 +19,7 @@ import shutil
 import tempfile
 from dataclasses import replace
 
-from ..banks.scenes import bank_problems, resolve_bank
+from ..banks.scenes import bank_problems
 from ..choices import CheckLevel
 from ..config import Config, config_problems, geometry_problems, rooms_without_bank
 from ..config.receiver import array_poses, hrtf_problem
@@ -28,7 +28,7 @@ from ..errors import DatasetError, TselError
 from ..plan.catalog import BUILTIN_DEMO, resolve_corpus_dir, reuse_stop, scan_catalog
 from ..plan.drawn import plan_drawn
 from ..plan.recorded import plan_recorded, recorded_corpus
-from ..plan.sampler import CatalogView, ambience_problems, bank_request, extended_queries, plan_split_json
+from ..plan.sampler import ambience_problems, bank_request, catalog_views, plan_split_json
 from ..store.layout import Layout
 from .pipeline import check_ownership, estimate_bytes, plan_differences, planned_with
 
@@ -212,20 +212,12 @@ def _report_bad(cfg: Config, bad: list, rep: CheckReport, errors: bool = False) 
 
 
 def _check_plan(cfg: Config, catalogs: dict, workers: int, rep: CheckReport, out_dir, scratch: Layout) -> None:
-    """Sample every scene in memory (what `tsel plan` would write), collecting failures."""
-    bank_path = None
-    if cfg.room.bank:
-        home = Layout(out_dir) if out_dir and os.path.exists(Layout(out_dir).demo_bank) else scratch
-        try:
-            bank_path = resolve_bank(bank_request(cfg), home.demo_bank)
-        except TselError as e:
-            rep.error(e)
-            return
+    """Sample every scene in memory (what `tsel plan` would write), collecting failures;
+    the views are made as `tsel generate` makes them (plan.sampler.catalog_views)."""
+    home = Layout(out_dir) if out_dir and os.path.exists(Layout(out_dir).demo_bank) else scratch
     for split, clips in catalogs.items():
         try:
-            view = CatalogView(clips, bank_path)
-            if extended_queries(cfg):  # built once here, not in every planning process
-                view.caption_index(cfg.scene.similarity, cfg.corpus.caption_embeddings)
+            view = catalog_views(cfg, {split: clips}, home)[split]
             if cfg.corpus.check == "drawn":  # the clips the plan draws, checked as the job checks them
                 plans, found = plan_drawn(cfg, {split: view}, workers, progress=None, prepare=False)
                 lines = plans[split]

@@ -31,9 +31,9 @@ from ..banks.scenes import resolve_bank
 from ..choices import MissingClipPolicy, values
 from ..config import parse_config
 from ..core.atomic import write_json, write_lines
-from ..core.version import RENDERER, __version__, renderer_of
+from ..core.version import RENDERER, __version__, is_newer, renderer_of
 from ..corpus.audio import check_clip
-from ..errors import DatasetError, TselError
+from ..errors import ConfigError, DatasetError, TselError
 from ..plan.catalog import BUILTIN_DEMO, resolve_corpus_dir
 from ..plan.sampler import bank_request
 from ..plan.recorded import recorded_corpus
@@ -100,7 +100,14 @@ def rebuild(release_dir: str, out_dir: str, corpus_dir: str | None = None, bank:
     os.makedirs(layout.plan_dir, exist_ok=True)
     with DatasetLock(layout, exclusive=True, what="rebuild it"):
         config = _config_here(rel, layout, corpus_dir, bank)
-        cfg = parse_config(local_roots(config, layout.root), where=rel.path("plan/config.json"), stored=True)
+        try:
+            cfg = parse_config(local_roots(config, layout.root), where=rel.path("plan/config.json"), stored=True)
+        except ConfigError as e:
+            if not is_newer(rel.doc.get("version")):
+                raise
+            raise DatasetError(f"{release_dir} was made by tsel-data {rel.doc.get('version')}, newer than this one "
+                               f"({__version__}), and its config is not one this version reads ({e}); update "
+                               f"tsel-data: pip install -U tsel-data") from None
         corpus = recorded_corpus(cfg, layout) if cfg.recorded.on else resolve_corpus_dir(cfg, layout.demo_corpus)
         if cfg.room.bank:
             resolve_bank(bank_request(cfg), layout.demo_bank)  # builds the built-in one, checks any other
@@ -138,7 +145,7 @@ def required_scenes(spec: int | str, total: int) -> int:
     text = str(spec).strip()
     try:
         n = math.ceil(float(text[:-1]) * total / 100 - 1e-9) if text.endswith("%") else int(text)
-    except ValueError:
+    except (ValueError, OverflowError):  # not a number, nan%, inf%
         n = -1
     if n < 0 or (text.endswith("%") and float(text[:-1]) > 100):
         raise TselError(f"--min-scenes {spec}: give a count of scenes (e.g. 30) or a share of the release's "
@@ -323,10 +330,13 @@ def _compare(rel: Release, out_dir: str, outcomes: list, clips: ClipState) -> No
                     continue
                 o.status = "differs"
                 changed = [n for n in o.clips if n in clips.changed]
+                # an edited recipe was refused on load by the plan's seal; a release without one cannot tell
+                edited = "" if isinstance(rel.plan_doc.get("seal"), dict) else \
+                    "its recipe was edited (the release has no plan seal to tell), or "
                 theirs = renderer_of(rel.doc)
                 o.why = ("; ".join(f"clip {n} differs from the release's (sha256)" for n in changed) if changed else
-                         f"no clip differs: the renderer does (release rendered by renderer {theirs}, this is "
+                         f"no clip differs: {edited}the renderer does (release rendered by renderer {theirs}, this is "
                          f"renderer {RENDERER}: tsel-data {rel.doc.get('version')} rebuilds it bit for bit)"
                          if theirs != RENDERER else
-                         f"no clip differs: the renderer or its libraries do (release made by tsel-data "
+                         f"no clip differs: {edited}the renderer or its libraries do (release made by tsel-data "
                          f"{rel.doc.get('version')}, this is {__version__})")

@@ -17,9 +17,11 @@ copy is bit for bit the release.
 from __future__ import annotations
 
 import os
+import unicodedata
 from dataclasses import dataclass, replace
 
 from ..core.digest import sha256_file
+from ..core.files import unicode_match
 from ..core.progress import bar
 from ..corpus.manifests import AUDIO_EXTENSIONS
 from ..errors import TselError
@@ -73,7 +75,7 @@ class _Search:
         return first or Found(None)
 
     def _candidates(self, name: str, entry: dict):
-        yield "name", os.path.join(self.copy, name)
+        yield "name", unicode_match(os.path.join(self.copy, name)) or os.path.join(self.copy, name)
         if self.cfg.recorded.on:  # a recording's folders are the dataset's own layout, not a download tool's
             return
         by_id = self.by_id()
@@ -109,7 +111,7 @@ class _Search:
                 dirs[:] = sorted(d for d in dirs if not d.startswith(".")
                                  and os.path.abspath(os.path.join(folder, d)) != self.skip)
                 for n in sorted(names):
-                    stem, ext = os.path.splitext(n)
+                    stem, ext = os.path.splitext(unicodedata.normalize("NFC", n))  # a copy from macOS: NFD
                     if ext.lower() not in AUDIO_EXTENSIONS:
                         continue
                     for s in dict.fromkeys((stem, stem[1:] if stem.startswith("Y") else stem)):
@@ -126,7 +128,7 @@ def _searching(cfg):
 
 def _stems(name: str) -> tuple[str, ...]:
     """The file names (no extension) a clip called ``name`` may have in another download."""
-    stem = os.path.splitext(os.path.basename(name))[0]
+    stem = unicodedata.normalize("NFC", os.path.splitext(os.path.basename(name))[0])
     return tuple(dict.fromkeys((stem, stem[1:] if stem.startswith("Y") else stem)))
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 
 from ..config import Config
 from ..core.atomic import write_json, write_lines
+from ..core.files import check_input
 from ..core.progress import bar
 from ..corpus.audio import ClipCheck, check_clip, keep_prepared, prepare_clip, prepared_state, wants_preparing
 from ..corpus.clip import Clip
@@ -131,6 +132,7 @@ def resolve_corpus_dir(cfg: Config, demo_dir: str) -> str:
         raise ConfigError("no corpus given: pass --corpus-dir DIR (the folder with the manifests and audio) "
                           "or set corpus.dir in the config")
     d = os.path.expanduser(d)
+    check_input(d, ConfigError, "pass the folder that holds the manifests", folder=True)
     if not os.path.isdir(d):
         raise ConfigError(f"corpus directory not found: {d}; pass the folder that holds the manifests")
     return d

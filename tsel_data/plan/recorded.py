@@ -32,6 +32,7 @@ from ..config import Config
 from ..corpus.ontologies import Ontology, read_ontology
 from ..corpus.seld import SETS, FRAME_HOP, Labels, Recording, Source, find_recordings, read_labels, window_sources
 from ..errors import ConfigError
+from ..core.files import check_input
 from ..receivers import receiver
 from ..scene.queries import RELATIONS, Truth, check, composite_wordings, held, margins
 from ..scene.recipe import BUILTIN_DEMO_RECORDED, plan_roots
@@ -174,6 +175,7 @@ def plan_recorded(cfg: Config, corpus_dir: str, report=None) -> tuple[dict[str, 
 def _audio_frames(corpus_dir: str, r: Recording, fs: int, spec) -> int:
     """The recording's length in label frames, after checking its rate and channels."""
     path = os.path.join(corpus_dir, r.audio)
+    check_input(path, ConfigError, "a recording is an audio file")
     try:
         info = sf.info(path)
     except (RuntimeError, sf.LibsndfileError) as e:

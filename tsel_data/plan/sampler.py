@@ -19,12 +19,13 @@ from ..choices import Additive, LevelModel, Pairing, QueryType, Role, Scenario, 
 from ..config import Config, rooms_without_bank
 from ..config.receiver import array_pose, hrtf_problem
 from ..core.progress import bar
-from ..corpus.ambience import find_ambience
-from ..corpus.captions import CaptionIndex, caption_sets, load_embeddings, max_similarity
+from ..corpus.ambience import check_sounds, find_ambience
+from ..corpus.captions import CaptionIndex, caption_sets, load_embeddings, max_similarity, same_kind, sound_events
 from ..corpus.clip import Clip
 from ..errors import TselError
 from ..receivers import receiver
 from ..runtime.pool import ordered_pool
+from ..render.hardware import draw_hardware
 from ..render.noise import draw_noise
 from ..scene.queries import margins as relation_margins
 from ..scene.recipe import BUILTIN_DEMO_BANK, BankRef, QueryPlan, Roots, SceneRecipe, Source, plan_roots
@@ -94,6 +95,13 @@ class CatalogView:
             self._indexes[key] = [tuple(caption_sets(c, measure) for c in clip.captions) for clip in self.clips]
         return self._indexes[key]
 
+    def sound_events(self) -> list[frozenset]:
+        """Each clip's sound events, its captions together (corpus.captions.sound_events), made once."""
+        key = ("events",)
+        if key not in self._indexes:
+            self._indexes[key] = [sound_events(c.captions) for c in self.clips]
+        return self._indexes[key]
+
     @property
     def source_ids(self) -> np.ndarray:
         """Each clip's sound source as an integer (clips of one recording share it)."""
@@ -118,15 +126,24 @@ def prepare_views(cfg: Config, home: Layout, workers: int = 1,
             raise problem
     corpus_dir = resolve_corpus_dir(cfg, home.demo_corpus)
     catalog = build_catalog(cfg, corpus_dir, workers=workers, progress=progress)
-    bank_path = resolve_bank(bank_request(cfg), home.demo_bank)
+    return catalog, catalog_views(cfg, catalog.clips, home)
+
+
+def catalog_views(cfg: Config, clips: dict, home: Layout) -> dict[str, CatalogView]:
+    """Per split of ``clips`` ({split: [Clip]}), the :class:`CatalogView` its scenes are
+    planned from: the resolved bank, the roots, the ambience, the caption index. The one
+    way a view is made, for ``tsel generate`` and ``tsel check`` alike."""
+    bank_path = resolve_bank(bank_request(cfg), home.demo_bank) if cfg.room.bank else None
     roots = plan_roots(cfg, home)
     ambience = find_config_ambience(cfg)
-    views = {split: CatalogView(clips, bank_path, roots, ambience) for split, clips in catalog.clips.items()}
-    if extended_queries(cfg):
+    views = {split: CatalogView(split_clips, bank_path, roots, ambience) for split, split_clips in clips.items()}
+    if extended_queries(cfg):  # built once here, not in every planning process
         for split in cfg.active_splits():
             if split in views:
                 views[split].caption_index(cfg.scene.similarity, cfg.corpus.caption_embeddings)
-    return catalog, views
+                if same_kind_possible(cfg):
+                    views[split].sound_events()
+    return views
 
 
 def ambience_problems(cfg: Config) -> list[TselError]:
@@ -153,8 +170,11 @@ def find_config_ambience(cfg: Config):
     if not cfg.noise.ambience:
         return None
     pose = array_pose(cfg)
-    return find_ambience(os.path.abspath(os.path.expanduser(cfg.noise.ambience)), pose.n_channels, cfg.audio.fs,
-                         pose.format, scene_samples=int(round(cfg.audio.duration * cfg.audio.fs)))
+    found = find_ambience(os.path.abspath(os.path.expanduser(cfg.noise.ambience)), pose.n_channels, cfg.audio.fs,
+                          pose.format, scene_samples=int(round(cfg.audio.duration * cfg.audio.fs)))
+    for rec in found.recordings:
+        check_sounds(rec.path, cfg.audio.fs)
+    return found
 
 
 def bank_request(cfg: Config) -> BankRequest:
@@ -168,8 +188,9 @@ def scene_rng(seed: int, split: str, index: int, stream: int = 0) -> np.random.G
     """The generator of every draw of scene ``index`` of ``split``.
 
     Streams 1 (query decisions: the query type, same-kind draws, the relation order and
-    wording) and 2 (each source's start, ``scene.onset``) are independent generators of
-    the same scene, so they never shift the draws of stream 0 (clips, levels, room,
+    wording), 2 (each source's start, ``scene.onset``), 3 (``[noise]``), 4 (source powers)
+    and 5 (``[hardware]``: each receiver's capsules and clocks) are independent generators
+    of the same scene, so they never shift the draws of stream 0 (clips, levels, room,
     placement) that earlier releases made.
     """
     key = [seed, zlib.crc32(split.encode("utf-8")), index]
@@ -183,6 +204,11 @@ def extended_queries(cfg: Config) -> bool:
     sc = cfg.scene
     return (set(sc.query.options) != {QueryType.CAPTION} or sc.pairing != Pairing.RANDOM
             or sc.same_kind_distractors > 0 or sc.similarity not in SET_MEASURES)
+
+
+def same_kind_possible(cfg: Config) -> bool:
+    """Whether scenes may draw same-kind distractors (composite queries, or a probability of them)."""
+    return cfg.scene.same_kind_distractors > 0 or QueryType.COMPOSITE in cfg.scene.query.options
 
 
 SET_MEASURES = (SimilarityMeasure.LEXICON, SimilarityMeasure.WORDS, SimilarityMeasure.NONE)
@@ -236,7 +262,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     if extended_queries(cfg):
         pairs = _QueryDraws(cfg, split, index, cat, t, q)
         for k in range(n_int):
-            chosen.append(pairs.pick(rng, chosen, same_kind=pairs.wants_same_kind(k, n_int)))
+            chosen.append(pairs.pick(rng, chosen, kind=pairs.wants_same_kind(k, n_int)))
     else:
         for _ in range(n_int):
             chosen.append(_pick_interferer(rng, cat, chosen, (t, q), sc, split, index))
@@ -274,6 +300,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
         target_level_dbfs=a.target_level_dbfs, activity_threshold_db=a.activity_threshold_db, bank=bank,
         query_plan=None if pairs is None else pairs.plan(chosen),
         noise=_noise_items(cfg, split, index, cat, chosen, bank.room if bank else None),
+        hardware=draw_hardware(cfg, scene_rng(cfg.seed, split, index, 5), array),
         descriptors=cfg.output.descriptors,
     )
     return recipe.validate(wall_margin=cfg.sources.wall_margin - 1e-6)
@@ -314,7 +341,7 @@ class _QueryDraws:
         self.qrng = scene_rng(cfg.seed, split, index, stream=1)
         self.wanted = str(self.sc.query.sample(self.qrng))
         self.ix = cat.caption_index(self.sc.similarity, cfg.corpus.caption_embeddings)
-        self.t, self.cap = t, self.ix.caption_id(t, q)
+        self.t, self.q, self.cap = t, q, self.ix.caption_id(t, q)
         self.pairings: list = [None]
 
     def wants_same_kind(self, k: int, n_int: int) -> bool:
@@ -325,7 +352,7 @@ class _QueryDraws:
         drawn = bool(self.qrng.random() < p) if p > 0 else False
         return drawn or (self.wanted == QueryType.COMPOSITE and k == n_int - 1)
 
-    def pick(self, rng, chosen: list[int], same_kind: bool) -> int:
+    def pick(self, rng, chosen: list[int], kind: bool) -> int:
         sc, ix, cat = self.sc, self.ix, self.cat
         taken = cat.source_ids[chosen]
 
@@ -334,8 +361,17 @@ class _QueryDraws:
             return (cat.source_ids[clips][:, None] != taken[None, :]).all(axis=1)
 
         excluded = cat.excluded_mask if cat.excluded else None
-        if same_kind:
-            j = ix.sample(rng, self.cap, sc.same_kind_similarity, np.inf, allowed, excluded=excluded)
+        if kind:
+            # of the target's kind: the band of similarity to the query caption, and the
+            # sound events the caption names, no more than the target's (corpus.captions.same_kind)
+            events = cat.sound_events()
+            query, target = sound_events(cat.clips[self.t].captions[self.q]), events[self.t]
+
+            def of_kind(clips):
+                ok = allowed(clips)
+                return ok & np.array([same_kind(query, target, events[j]) for j in clips], dtype=bool)
+
+            j = ix.sample(rng, self.cap, sc.same_kind_similarity, np.inf, of_kind, excluded=excluded)
             if j is not None:
                 self.pairings.append("same-kind")
                 return j

@@ -29,19 +29,22 @@ from ..choices import Spatial
 from ..core.geometry import cart_to_sph, frame_centres
 from ..corpus.ambience import omni_energy
 from ..corpus.audio import active_rms, db, frame_activity, load_clip_cached
+from ..dsp.hardware import clock_warp, self_noise, through_capsules
 from ..dsp.timevarying import render_moving, render_static
 from ..errors import AudioError, BankError
 from ..scene.motion import motion_class
 from ..scene.queries import Truth, decide
 from ..scene.recipe import BankRef, Roots, SceneRecipe, array_frame_position_at
-from ..store.records import (LABEL_DECIMALS, ArrayRecord, LevelsRecord, NoiseRecord, RoomRecord, SceneRecord,
-                             SourceRecord, label_list)
+from ..store.records import (LABEL_DECIMALS, ArrayRecord, HardwareRecord, LevelsRecord, NoiseRecord, RoomRecord,
+                             SceneRecord, SourceRecord, label_list)
 from ..store.scene import Scene
 from .noise import noise_image, noise_gain, noise_level_dbfs
 
 # The mix's peak is kept below full scale, so 16-bit exports do not clip: if the mixed
 # scene would exceed it, every source is scaled down together (levels.normalisation_db).
 PEAK_LIMIT = 0.99
+# an image this far below its dry clip (-200 dB) went through RIRs that are damage, not a room
+SILENT_IMAGE = 1e-10
 
 
 def convolve(signals, rirs, n_out: int, out=None) -> np.ndarray:
@@ -208,7 +211,9 @@ class MixParts:
     peak: the mix's peak before ``norm``. mix: float32 [C, T], the scene's audio.
     rt60_measured: s, or None. others: the recipe's further receivers (``recipe.receivers``),
     each (images, mix) with the same gains and ``norm`` (levels are set on the first
-    receiver; ``norm`` keeps every receiver's mix below full scale). descriptors: with
+    receiver; ``norm`` keeps every receiver's mix below full scale). hardware: each
+    receiver's microphones as built (``recipe.hardware``; empty: ideal), already in ``mix``
+    and the others' mixes; the stems go through them too. descriptors: with
     ``recipe.descriptors``, each source's (:func:`source_descriptors`), else empty.
     """
 
@@ -222,20 +227,35 @@ class MixParts:
     rt60_measured: float | None
     others: tuple = ()
     noise: tuple = ()
+    hardware: tuple = ()
+    fs: int = 0
     descriptors: tuple = ()
 
     def stems(self, receiver: int = 0) -> np.ndarray:
         """float32 [S, C, T]: each source alone as it sounds in the mix of receiver
         ``receiver`` (0: the first; with :meth:`noise_stem` they add up to its mix within
-        float32 rounding)."""
+        float32 rounding), through the receiver's hardware when it has any."""
         images = self.images if receiver == 0 else self.others[receiver - 1][0]
-        return images * (self.gains * self.norm).astype(np.float32)[:, None, None]
+        stems = images * (self.gains * self.norm).astype(np.float32)[:, None, None]
+        hw = self.hardware[receiver] if self.hardware else None
+        if hw is not None:
+            stems = np.stack([clock_warp(through_capsules(x, hw, self.fs), hw, self.fs) for x in stems])
+        return stems
 
     def noise_stem(self, receiver: int = 0) -> np.ndarray | None:
-        """float32 [C, T]: everything but the sources (``[noise]``) as it sounds in the mix, or None."""
-        if not self.noise:
+        """float32 [C, T]: everything but the sources (``[noise]``, and the capsules' own
+        self-noise) as it sounds in the mix, or None."""
+        hw = self.hardware[receiver] if self.hardware else None
+        noise = self_noise(hw, self.images.shape[-1], self.fs) if hw is not None else None
+        if not self.noise and noise is None:
             return None
-        return sum(n.images[receiver] for n in self.noise) * np.float32(self.norm)
+        if not self.noise:
+            return clock_warp(noise, hw, self.fs)
+        bed = sum(n.images[receiver] for n in self.noise) * np.float32(self.norm)
+        if hw is None:
+            return bed
+        bed = through_capsules(bed, hw, self.fs)
+        return clock_warp(bed if noise is None else bed + noise, hw, self.fs)
 
 
 @dataclass(frozen=True)
@@ -263,7 +283,8 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
     level_ch = recipe.array.spec.level_slice()  # the "omni energy": W for FOA, every capsule of an array
     levels = np.array([active_rms(images[k, level_ch], active[k], fs, hop) for k in range(len(images))])
     for k, s in enumerate(recipe.sources):
-        if not np.isfinite(levels[k]) or (levels[k] <= 0 and np.max(np.abs(dry[k])) > 0):
+        sounding = float(np.max(np.abs(dry[k])))
+        if not np.isfinite(levels[k]) or (levels[k] <= SILENT_IMAGE * sounding and sounding > 0):
             _blame_rirs(recipe, k)
         if levels[k] <= 0:
             # a silent source would leave a query describing nothing audible
@@ -281,14 +302,29 @@ def mix_parts(recipe: SceneRecipe) -> MixParts:
         mix += nz.images[0]
         for (_, m), img in zip(others, nz.images[1:]):
             m += img
+    hw = recipe.hardware
+    if hw:  # each receiver's capsules: after the room, before the guard against clipping
+        mix = through_capsules(mix, hw[0], fs)
+        others = [(imgs, through_capsules(m, h, fs)) for (imgs, m), h in zip(others, hw[1:])]
     peak = float(np.max(np.abs(mix))) if mix.size else 0.0
     top = max([peak] + [float(np.max(np.abs(m))) for _, m in others if m.size])
     norm = PEAK_LIMIT / top if top > PEAK_LIMIT else 1.0
     mix *= np.float32(norm)
     for _, m in others:
         m *= np.float32(norm)
+    if hw:  # then their self-noise, at its own level, and their clocks
+        mix = _self_noise_and_clock(mix, hw[0], fs)
+        others = [(imgs, _self_noise_and_clock(m, h, fs)) for (imgs, m), h in zip(others, hw[1:])]
     described = source_descriptors(recipe, rirs, active) if recipe.descriptors else ()
-    return MixParts(active, images, gains, norm, levels, peak, mix, rt60_measured, tuple(others), noise, described)
+    return MixParts(active, images, gains, norm, levels, peak, mix, rt60_measured, tuple(others), noise, hw, fs,
+                    described)
+
+
+def _self_noise_and_clock(mix: np.ndarray, hw, fs: int) -> np.ndarray:
+    noise = self_noise(hw, mix.shape[-1], fs)
+    if noise is not None:
+        mix += noise
+    return clock_warp(mix, hw, fs)
 
 
 # a moving simulated source is measured on its knot nearest the middle of its sounding
@@ -359,6 +395,10 @@ def _mixed_noise(recipe: SceneRecipe, item, target: np.ndarray, level_ch) -> "Mi
     raw = [noise_image(item, p, recipe.fs, recipe.n_samples, recipe.duration, recipe.label_hop,
                        recipe.activity_threshold_db) for p in poses]
     g = noise_gain(item, target, raw[0], level_ch)
+    if g == 0 and item.snr_db is not None:  # silence at an SNR: the record would say none was heard
+        what = f"ambience {item.file} from sample {item.offset}" if item.file else f"its {item.kind} noise"
+        raise AudioError(f"{recipe.scene_id}: {what} is silent in the scene; no gain puts it at {item.snr_db:g} dB: "
+                         f"replace the recording (or cut its silent stretches), or set noise.{item.kind} off")
     scaled = tuple(r * np.float32(g) for r in raw)
     snr = None
     if item.snr_db is not None and g > 0:
@@ -393,7 +433,8 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
         A source is silent in the part of its clip the scene uses.
     """
     files = (roots or Roots()).resolve(recipe)
-    parts = mix_parts(files)
+    with np.errstate(over="ignore", invalid="ignore"):  # what overflows is refused before it is written (store/sanity)
+        parts = mix_parts(files)
     active, gains, norm, levels, peak, mix = parts.active, parts.gains, parts.norm, parts.levels, parts.peak, parts.mix
     rt60_measured = parts.rt60_measured
 
@@ -421,7 +462,8 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
         scene_id=recipe.scene_id, split=recipe.split, index=recipe.index, seed=recipe.seed,
         scenario=recipe.scenario, query=query, motion="moving" if recipe.moving else "static",
         rir_method=recipe.rir_method, room=room,
-        array=ArrayRecord.of(recipe.array, centre, yaw, np.round(mics.astype(np.float64), 6).tolist()),
+        array=ArrayRecord.of(recipe.array, centre, yaw, np.round(mics.astype(np.float64), 6).tolist(),
+                             _hardware_record(recipe, 0)),
         sources=tuple(
             SourceRecord.of(
                 s, label_list(az[k], LABEL_DECIMALS["azimuth"]), label_list(el[k], LABEL_DECIMALS["elevation"]),
@@ -432,7 +474,8 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
                    {"acoustics": parts.descriptors[k], "motion": motion_class(az[k], el[k], dist[k], active[k])}))
             for k, s in enumerate(recipe.sources)),
         levels=LevelsRecord(recipe.target_level_dbfs, round(peak * norm, 6), round(db(norm), 3)),
-        receivers=tuple(ArrayRecord.of(p, centre, yaw, np.round(p.mics(), 6).tolist()) for p in recipe.receivers),
+        receivers=tuple(ArrayRecord.of(p, centre, yaw, np.round(p.mics(), 6).tolist(), _hardware_record(recipe, k + 1))
+                        for k, p in enumerate(recipe.receivers)),
         noise=tuple(_noise_record(recipe_item, nz, norm, recipe.array.spec.level_slice())
                     for recipe_item, nz in zip(recipe.noise, parts.noise)),
         **extra,
@@ -441,6 +484,11 @@ def render_scene(recipe: SceneRecipe, roots: Roots | None = None) -> Scene:
     noise = {n.kind: (n.snr_db, n.level_dbfs) for n in record.noise}
     return Scene(recipe.scene_id, recipe.split, recipe.index, query, mix, az, el, dist, active, mics, recipe.fs,
                  recipe.label_hop, recipe.array.format, record, receivers=others, noise=noise)
+
+
+def _hardware_record(recipe: SceneRecipe, k: int) -> HardwareRecord | None:
+    """What the record says of receiver ``k``'s microphones (``recipe.hardware``), or None."""
+    return HardwareRecord.of(recipe.hardware[k]) if recipe.hardware else None
 
 
 def _noise_record(item, nz, norm: float, level_ch) -> NoiseRecord:
@@ -468,7 +516,7 @@ def _blame_rirs(recipe: SceneRecipe, k: int) -> None:
         raise BankError(f"{recipe.bank.path}: room {b.room} trajectory {b.trajectory}, RIRs {list(b.indices)[:6]}"
                         f"{'...' if len(b.indices) > 6 else ''}: NaN, Inf or all zero (scene {recipe.scene_id}, "
                         f"source {k}); the bank is damaged: re-import it or drop the room")
-    raise BankError(f"{recipe.scene_id}: source {k}'s simulated RIRs are NaN or silent (room {recipe.room}); "
+    raise BankError(f"{recipe.scene_id}: source {k}'s simulated RIRs are NaN or all but silent (room {recipe.room}); "
                     f"this is a simulator failure: report it with the scene's recipe")
 
 

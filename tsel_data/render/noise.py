@@ -31,7 +31,7 @@ from ..corpus.audio import active_rms, frame_activity, load_clip_cached
 from ..dsp import realfft as sfft  # scipy.fft's numbers without its import
 from ..dsp.timevarying import render_static
 from ..choices import NoiseKind, NoiseSpectrum, SensorLevel
-from ..errors import AudioError
+from ..errors import AudioError, ConfigError
 from ..scene.recipe import NoiseItem
 
 BABBLE_DISTANCE = 10.0  # m: a far source, a plane wave to a 10 cm array (its curvature is below 0.5 mm)
@@ -66,7 +66,11 @@ def _draw_babble(cfg, rng, index: int, cat, chosen, bank_room, n: int) -> NoiseI
     nc = cfg.noise
     pool = np.setdiff1d(np.arange(len(cat.clips)), chosen)
     while True:  # clips a full check found bad (cat.excluded) are drawn again, the others kept as drawn
-        picked = rng.choice(pool, size=min(nc.babble, len(pool)), replace=False)
+        if len(pool) < nc.babble:  # never fewer talkers than asked, silently
+            raise ConfigError(f"noise.babble = {nc.babble} asks for {nc.babble} babble clips besides a scene's "
+                              f"{len(chosen)} sources, but the split has {len(cat.clips)} usable clips; lower "
+                              f"noise.babble to at most {len(pool)}")
+        picked = rng.choice(pool, size=nc.babble, replace=False)
         bad = [int(i) for i in picked if int(i) in cat.excluded]
         if not bad:
             break

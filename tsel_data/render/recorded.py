@@ -17,6 +17,7 @@ from ..core.digest import sha256_file
 from ..core.geometry import azimuth_difference
 from ..corpus.seld import SETS, read_labels, window_sources
 from ..errors import AudioError, TselError
+from ..core.files import check_input
 from ..receivers import mic_positions, receiver
 from ..scene.recipe import Roots
 from ..scene.recorded import RecordedRecipe
@@ -77,6 +78,7 @@ def recorded_problem(recipe: RecordedRecipe, roots: Roots) -> str | None:
     shorter, of another rate or channel count, or its labels no longer hold its sources),
     or None. What a rebuild from a release says scene by scene instead of failing."""
     try:
+        check_input(roots.clip(recipe.audio), AudioError, "a recording is an audio file")
         info = sf.info(roots.clip(recipe.audio))
         labels = _labels(roots.clip(recipe.metadata), recipe.dataset, tuple(recipe.columns),
                          *_stat(roots.clip(recipe.metadata)))
@@ -94,6 +96,7 @@ def recorded_problem(recipe: RecordedRecipe, roots: Roots) -> str | None:
 
 def read_window(path: str, recipe: RecordedRecipe) -> np.ndarray:
     """The window's samples, float32 [C, T], as the file holds them."""
+    check_input(path, AudioError, "a recording is an audio file")
     try:
         with sf.SoundFile(path) as f:
             if f.samplerate != recipe.fs or f.channels != len(recipe_channels(recipe)):

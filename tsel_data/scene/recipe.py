@@ -19,10 +19,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..choices import Role, Scenario, Spatial, values
+from ..core.files import check_input
 from ..core.geometry import Room, interpolate_positions, room_to_array
 from ..core.jsonable import JsonFields, key, rows, unset
 from ..errors import DatasetError, GeometryError
 from ..receivers import RECEIVERS, ArrayPose
+from .hardware import Hardware
 from .recorded import KIND as RECORDED, RecordedRecipe
 
 SCENARIOS = values(Scenario)
@@ -207,7 +209,9 @@ class SceneRecipe:
     query; with a ``query_plan`` the renderer decides the scene's query from it and the
     rendered truth (a relation, or this caption). receivers: further receivers heard in
     the same pass, at the array's centre and yaw (``scene.receivers``). noise: what else
-    it hears, unlabelled (:class:`NoiseItem`, ``[noise]``). descriptors: the record gets
+    it hears, unlabelled (:class:`NoiseItem`, ``[noise]``). hardware: each receiver's
+    microphones as built (``[hardware]``; :class:`~tsel_data.scene.hardware.Hardware`), in
+    the order ``array``, ``receivers``; empty: ideal capsules. descriptors: the record gets
     each source's acoustic descriptors and motion class, and the room's size
     (``output.descriptors``).
     """
@@ -231,6 +235,7 @@ class SceneRecipe:
     query_plan: QueryPlan | None = None
     receivers: tuple[ArrayPose, ...] = ()
     noise: tuple[NoiseItem, ...] = ()
+    hardware: tuple[Hardware, ...] = ()
     descriptors: bool = False
 
     kind = "rendered"  # a plan line's kind (a recorded scene's recipe says "recorded")
@@ -280,6 +285,8 @@ class SceneRecipe:
             d["receivers"] = [a.to_dict() for a in self.receivers]
         if self.noise:
             d["noise"] = [n.to_dict() for n in self.noise]
+        if self.hardware:  # [hardware]: absent otherwise, so recipes without it keep their bytes
+            d["hardware"] = [h.to_dict() for h in self.hardware]
         if self.descriptors:  # absent otherwise: recipes made before it keep their bytes
             d["descriptors"] = True
         return d
@@ -299,6 +306,7 @@ class SceneRecipe:
         d["query_plan"] = None if qp is None else QueryPlan.from_dict(qp)
         d["receivers"] = tuple(ArrayPose.from_dict(a) for a in d.get("receivers") or ())
         d["noise"] = tuple(NoiseItem.from_dict(n) for n in d.get("noise") or ())
+        d["hardware"] = tuple(Hardware.from_dict(h) for h in d.get("hardware") or ())
         return cls(**d)
 
     @classmethod
@@ -423,6 +431,7 @@ def read_plan(path) -> list[SceneRecipe]:
     """Every recipe of a ``plan/{split}.jsonl`` file, in order (DatasetError naming the
     line when one is damaged)."""
     out = []
+    check_input(path, DatasetError, "plan again into a new --out")
     try:
         with open(path, "rb") as f:
             for n, raw in enumerate(f, 1):
@@ -460,6 +469,6 @@ def recipe_from_line(path, n: int, raw: bytes | str) -> SceneRecipe:
     line when it is damaged)."""
     try:
         return recipe_from_dict(json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw))
-    except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
+    except (ValueError, KeyError, TypeError, IndexError, AttributeError, RecursionError) as e:
         raise DatasetError(f"{path}:{n}: damaged scene recipe ({type(e).__name__}: {str(e)[:80]}); plan again "
                            f"into a new --out") from None

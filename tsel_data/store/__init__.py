@@ -3,7 +3,7 @@ promises, and nobody else spells a path or a record key.
 
 Import order: ``layout`` (path names), ``records`` (the per-scene record), ``dataset``
 (dataset.json, conventions, shard attributes), ``plans`` (plan files, shard tasks),
-then ``writer``, ``scene`` (what the reader returns), ``reader`` and ``check`` (``tsel check DIR``);
+``sanity`` (the last look at a scene before it is written), then ``writer``, ``scene`` (what the reader returns), ``reader`` and ``check`` (``tsel check DIR``);
 ``outputs``: where the commands may write the files a user names, and over what.
 """
 from .dataset import CONVENTIONS, FORMAT_VERSION, DatasetDoc, ShardEntry, load_dataset_doc, shard_attrs

@@ -18,6 +18,7 @@ import h5py
 import numpy as np
 
 from ..core.digest import sha256_file
+from ..core.files import path_problem
 from ..core.h5str import as_str, as_strs
 from ..core.report import CheckReport
 from ..errors import DatasetError, TselError
@@ -45,7 +46,8 @@ def check_dataset(out_dir: str, workers: int = 1, audio: bool = True) -> CheckRe
     """
     rep = CheckReport(f"dataset {out_dir}")
     if not os.path.isdir(out_dir):
-        rep.error(DatasetError(f"{out_dir}: no such folder; give the --out folder of `tsel generate`"))
+        why = f" {path_problem(out_dir, folder=True)}" if os.path.lexists(out_dir) else ": no such folder"
+        rep.error(DatasetError(f"{out_dir}{why}; give the --out folder of `tsel generate`"))
         return rep
     layout = Layout(out_dir)
     if not os.path.isfile(layout.dataset_file):
@@ -173,7 +175,10 @@ def _check_shard(job) -> list[str]:
     fix = f"delete it and rerun `tsel render {out_dir}` and `tsel finalize {out_dir}`"
     problems = []
     for rel, path, digest in ((entry.file, h5_path, entry.sha256), (entry.json, js_path, entry.json_sha256)):
-        if not os.path.isfile(path):
+        special = path_problem(path)
+        if special and special != "does not exist":  # a FIFO would keep the hash waiting
+            problems.append(f"{rel} {special}; {fix}")
+        elif not os.path.isfile(path):
             problems.append(f"{rel}: listed in dataset.json but missing; rerun `tsel render {out_dir}` and "
                             f"`tsel finalize {out_dir}`")
         elif digest and sha256_file(path) != digest:

@@ -10,6 +10,8 @@ import json
 import os
 from dataclasses import dataclass, field, replace
 
+from ..choices import SPLIT_NAME
+from ..core.files import check_input, name_problem
 from ..core.version import RENDERER, __version__
 from ..errors import DatasetError
 from ..receivers import RECEIVERS, receiver
@@ -149,10 +151,12 @@ def load_dataset_doc(root: str) -> DatasetDoc:
     """Parse ``ROOT/dataset.json`` (DatasetError with a clear message if absent or bad)."""
     root = os.fspath(root)
     path = os.path.join(root, DATASET_FILE)
+    check_input(root, DatasetError, "give the --out folder of `tsel generate`", folder=True)
     if not os.path.isdir(root):
         raise DatasetError(f"{root}: no such dataset directory")
     if not os.path.exists(path):
         raise DatasetError(f"{path} not found: {root} is not a tsel-data dataset (or generation has not finished)")
+    check_input(path, DatasetError, f"rerun `tsel finalize {root}`")
     try:
         with open(path, encoding="utf-8") as f:
             doc = json.load(f)
@@ -160,17 +164,27 @@ def load_dataset_doc(root: str) -> DatasetDoc:
         raise DatasetError(f"{path}: not valid JSON ({e})") from None
     except UnicodeDecodeError:
         raise DatasetError(f"{path}: not UTF-8 text; rerun `tsel finalize {root}`") from None
+    except (RecursionError, ValueError) as e:  # lists nested thousands deep, a number of 5,000 digits
+        raise DatasetError(f"{path}: damaged ({e}); rerun `tsel finalize {root}`") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("splits"), dict):
         raise DatasetError(f"{path}: no 'splits' entry; is this a tsel-data dataset.json?")
     try:
         splits, counts = {}, {}
         for name, s in doc["splits"].items():
+            if not SPLIT_NAME.fullmatch(name):  # a split names folders of the dataset and of its exports
+                raise DatasetError(f"{path}: split {name!r} is not a plain name (letters, digits, _ or -); the file "
+                                   f"was edited: rerun `tsel finalize {root}`")
             shards = s.get("shards") or []
             for k, e in enumerate(shards):
                 where = f"splits.{name}.shards[{k}]"
                 for key, kind in (("file", str), ("json", str), ("scenes", int), ("sha256", str), ("json_sha256", str)):
                     if key in e or key in ("file", "json", "scenes"):
                         _typed(e.get(key), kind, f"{where}.{key}", path, root)
+                for key in ("file", "json"):  # a name read from the file stays inside the dataset
+                    why = name_problem(e[key])
+                    if why:
+                        raise DatasetError(f"{path}: {where}.{key} {e[key]!r} {why}; the file was edited: rerun "
+                                           f"`tsel finalize {root}`")
             splits[name] = [ShardEntry(e["file"], e["json"], e["scenes"], e.get("sha256", ""),
                                        e.get("json_sha256", "")) for e in shards]
             counts[name] = _typed(s.get("scenes", 0), int, f"splits.{name}.scenes", path, root)

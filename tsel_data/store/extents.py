@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
+import h5py
 import numpy as np
 
 from ..errors import DatasetError
@@ -45,7 +46,9 @@ def audio_extents(root: str, split: str, receiver: str | None = None) -> list[Ex
     for entry in doc.shards(split):
         path = os.path.join(root, entry.file)
         with open_shard(path) as f:
-            d = f[name]
+            d = f.get(name)
+            if not isinstance(d, h5py.Dataset):  # a damaged shard: the reader names it
+                return None
             if (d.ndim != 3 or d.chunks != (1, *d.shape[1:]) or d.id.get_create_plist().get_nfilters() != 0
                     or d.dtype not in RAW_DTYPES or not np.little_endian):
                 return None
@@ -71,4 +74,7 @@ def read_extent(extent: Extent, src_fd: int, buf: np.ndarray) -> memoryview:
             raise DatasetError(f"{extent.path} ends inside a scene's audio (byte {extent.offset + done}); the "
                                f"shard is damaged: `tsel check` the dataset, render the shard again")
         done += n
+    if extent.dtype.kind == "f" and not np.isfinite(np.frombuffer(view, extent.dtype)).all():
+        raise DatasetError(f"{extent.path}: damaged shard (a scene's audio holds NaN or Inf samples, at byte "
+                           f"{extent.offset}); `tsel check` the dataset, render the shard again")
     return view

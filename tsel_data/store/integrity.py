@@ -22,6 +22,7 @@ import os
 from dataclasses import dataclass
 
 from ..core.digest import sha256_file
+from ..core.files import is_regular
 from .layout import Layout
 
 SEAL_VERSION = 1
@@ -120,7 +121,9 @@ class Seal:
 
 
 def read_seal(layout: Layout, split: str, shard: int) -> Seal | None:
-    """A shard's seal, or None when it is missing or unreadable."""
+    """A shard's seal, or None when it is missing or unreadable (or no file: a FIFO)."""
+    if not is_regular(layout.seal_file(split, shard)):
+        return None
     try:
         with open(layout.seal_file(split, shard), encoding="utf-8") as f:
             return Seal.from_json(json.load(f))

@@ -10,7 +10,8 @@
     OUT/.tsel.lock              the dataset's lock; its presence marks the folder as ours
     OUT/demo-corpus/, OUT/demo-bank.h5   built-in demo inputs, built on first use
 
-An export folder is marked by its manifest, ``.tsel-export.json`` (export/base.py).
+An export folder is marked by its manifest, ``.tsel-export.json`` (export/base.py), and
+locked by ``.tsel-export.lock`` while an export writes into it (store/lock.py).
 """
 from __future__ import annotations
 
@@ -29,10 +30,12 @@ DEMO_BANK_FILE = "demo-bank.h5"
 LOCK_FILE = ".tsel.lock"
 SEAL_SUFFIX = ".seal.json"
 EXPORT_MANIFEST_FILE = ".tsel-export.json"
+EXPORT_LOCK_FILE = ".tsel-export.lock"  # one export at a time into a folder (store/lock.py)
 TOOL = "tsel-data"  # the "tool" of every JSON document that marks a folder as ours
 NOISE_GROUP = "noise"  # HDF5 group of a shard's unlabelled noise: noise/KIND/{snr_db, level_dbfs}
 DESCRIPTORS_GROUP = "descriptors"  # HDF5 group of the sources' acoustic descriptors (output.descriptors)
 RECEIVERS_GROUP = "receivers"  # HDF5 group of a shard's further receivers: receivers/NAME/{audio, mic_positions}
+HARDWARE_GROUP = "hardware"  # HDF5 group of the microphones as built ([hardware]): hardware/{gain_db, ...}
 
 
 def shard_names(split: str, shard: int) -> tuple[str, str]:

@@ -23,6 +23,7 @@ from contextlib import contextmanager
 
 from ..banks.tau import is_tau_folder
 from ..core.atomic import write_json
+from ..core.files import is_regular, replace_problem
 from ..errors import DatasetError, TselError, broken_link
 from .layout import EXPORT_MANIFEST_FILE, Layout
 
@@ -102,6 +103,9 @@ def claim_output(path, force: bool = False, owner: str = "tsel"):
 def _check(shown: str, full: str, force: bool, owner: str) -> list | None:
     if os.path.isdir(full):
         raise DatasetError(f"{shown} is a folder; give the name of a file")
+    special = replace_problem(full)  # /dev/null, a FIFO: never replaced, --force or not
+    if special:
+        raise DatasetError(f"{shown} {special}")
     if os.path.basename(full) == REGISTRY_FILE:
         raise DatasetError(f"{shown}: {REGISTRY_FILE} lists what tsel wrote in its folder; choose another name")
     refuse_inside(shown, force)
@@ -126,6 +130,8 @@ def _registry(folder: str) -> dict | None:
     path = os.path.join(folder, REGISTRY_FILE)
     if not os.path.lexists(path):
         return {}
+    if not is_regular(path):
+        return None  # a FIFO would keep the read waiting; not ours either way
     try:
         with open(path, encoding="utf-8") as f:
             doc = json.load(f)

@@ -13,6 +13,7 @@ import os
 from dataclasses import dataclass
 
 from ..core.digest import sha256_file
+from ..core.files import check_input
 from ..core.version import __version__
 from ..errors import DatasetError
 from ..receivers import canonical, receiver
@@ -82,27 +83,34 @@ def config_digest(config: dict) -> str:
     return hashlib.sha256(json.dumps(rootless, sort_keys=True, separators=(",", ":")).encode("utf-8")).hexdigest()
 
 
-def seal_problem(layout: Layout, doc: dict, splits=None, deep: bool = True) -> str:
+def seal_problem(layout: Layout, doc: dict, splits=None, deep: bool = True, edited: str = "") -> str:
     """What no longer matches the plan's seal in ``plan/config.json`` (``doc``): its
     config, or a plan file (of ``splits``, default all; ``deep``: by sha256, else by size
     only, for a job-array task that reads a few lines of a large plan). "" when all
-    match, or for a plan written before plans were sealed."""
+    match, or for a plan written before plans were sealed. ``edited``: when the plan
+    files were last written on purpose ("after the release was made"; default: after
+    planning, or by a --grow that stopped)."""
     seal = doc.get("seal")
     if not isinstance(seal, dict):
         return ""
     if seal.get("config_sha256") != config_digest(doc["config"]):
-        return f"{layout.config_file}: its config was edited after planning (it no longer matches its seal)"
-    files = seal.get("files") or {}
+        return (f"{layout.config_file}: its config was edited {edited or 'after planning'} (it no longer matches its "
+                f"seal)")
+    files = seal.get("files") if isinstance(seal.get("files"), dict) else {}
     for split in files if splits is None else splits:
-        want, path = files.get(split) or {}, layout.plan_file(split)
+        want, path = files.get(split) if isinstance(files.get(split), dict) else {}, layout.plan_file(split)
         try:
+            check_input(path, DatasetError)
             size = os.path.getsize(path)
             if size != want.get("bytes") or (deep and sha256_file(path) != want.get("sha256")):
                 # a --grow writes the plan files first and plan/config.json (the seal) last
-                return (f"{path} was edited after planning, or a --grow stopped before it finished (it no longer "
+                return (f"{path} was edited {edited} (it no longer matches the seal in {CONFIG_FILE})" if edited else
+                        f"{path} was edited after planning, or a --grow stopped before it finished (it no longer "
                         f"matches the seal in {CONFIG_FILE})")
         except OSError as e:
             return f"{path}: cannot read ({e.strerror or e})"
+        except DatasetError as e:
+            return str(e)
     return ""
 
 
@@ -149,12 +157,13 @@ def read_plan_doc(layout: Layout, remedy: tuple[str, str] = PLAN_AGAIN) -> dict:
     ``config`` as plain data, clip counts. ``remedy``: what the error line advises when
     the file is missing, and when it is damaged (a recipe release says "export it again")."""
     path = layout.config_file
+    check_input(path, DatasetError, remedy[1])
     if not os.path.isfile(path):
         raise DatasetError(f"{layout.root} has no plan ({CONFIG_FILE} missing); {remedy[0]}")
     try:
         with open(path, encoding="utf-8") as f:
             doc = json.load(f)
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+    except (ValueError, RecursionError) as e:  # not JSON, not UTF-8, nested thousands deep
         raise DatasetError(f"{path} is damaged ({e}); {remedy[1]}") from None
     except OSError as e:
         raise DatasetError(f"{path}: cannot read ({e.strerror or e}); {remedy[1]}") from None
@@ -188,6 +197,7 @@ def read_split_plan(layout: Layout, split: str) -> list[SceneRecipe]:
 def read_plan_lines(layout: Layout, split: str) -> list[str]:
     """The recipe lines of a split's plan file as written (none when there is no file)."""
     path = layout.plan_file(split)
+    check_input(path, DatasetError, "plan again into a new --out")
     if not os.path.isfile(path):
         return []
     with open(path, encoding="utf-8") as f:
@@ -200,6 +210,7 @@ def read_plan_range(layout: Layout, split: str, start: int, stop: int, block: in
     without holding or parsing the rest."""
     out: list[str] = []
     line, tail = 0, b""
+    check_input(layout.plan_file(split), DatasetError, "plan again into a new --out")
     try:
         f = open(layout.plan_file(split), "rb")
     except OSError as e:
@@ -229,6 +240,7 @@ def read_plan_range(layout: Layout, split: str, start: int, stop: int, block: in
 def plan_ids(layout: Layout, split: str) -> list[str] | None:
     """The scene ids of a split's plan file, in order (None when there is no such file)."""
     path = layout.plan_file(split)
+    check_input(path, DatasetError, "plan again into a new --out")
     if not os.path.isfile(path):
         return None
     ids = []

@@ -20,6 +20,7 @@ import h5py
 import numpy as np
 
 from ..choices import AudioCoding
+from ..core.files import check_input
 from ..core.h5str import as_str, as_strs
 from ..errors import DatasetError
 from .codings import coding_of, decode
@@ -138,6 +139,23 @@ class SceneDataset:
             f = self._h5[k] = open_shard(os.path.join(self.root, self.shards[k].file))
         return f
 
+    def damaged(self, k: int, why: str, json_file: bool = False) -> DatasetError:
+        """The one error of a shard whose files hold the wrong shape (every reader of a
+        dataset meets a damaged shard here, and says it the same way)."""
+        rel = self.shards[k].json if json_file else self.shards[k].file
+        return DatasetError(f"{os.path.join(self.root, rel)}: damaged shard ({why}); `tsel check {self.root}` lists "
+                            f"every damaged file: delete them, then run `tsel render {self.root}` and `tsel finalize "
+                            f"{self.root}`")
+
+    def finite(self, scene: Scene) -> Scene:
+        """``scene`` (read with its audio) when every sample is finite, else the damaged-shard
+        error naming its shard. Every reader that writes a scene's audio elsewhere or
+        computes on it (exports, ``inspect``, ``verify``) asks: no NaN ever leaves a
+        dataset. Not the reader's own path: it costs as much as reading the scene."""
+        if scene.audio is not None and not np.isfinite(scene.audio).all():
+            raise self.damaged(self.locate(scene.index)[0], f"scene {scene.scene_id}'s audio holds NaN or Inf samples")
+        return scene
+
     def _records(self, k: int) -> list:
         recs = self._json.get(k)
         if recs is None:
@@ -145,13 +163,19 @@ class SceneDataset:
             recs = []
             if rel and self.load_records:
                 path = os.path.join(self.root, rel)
+                check_input(path, DatasetError, "a shard's JSON is a file: render the shard again")
                 try:
                     with open(path, encoding="utf-8") as fh:
-                        recs = json.load(fh).get("scenes", [])
+                        doc = json.load(fh)
                 except FileNotFoundError:
                     raise DatasetError(f"{path}: shard labels missing; regenerate the dataset") from None
                 except (json.JSONDecodeError, UnicodeDecodeError) as e:
                     raise DatasetError(f"{path}: not valid JSON ({e})") from None
+                except (ValueError, RecursionError) as e:  # a number of 5,000 digits, lists nested 5,000 deep
+                    raise self.damaged(k, f"unreadable JSON: {e}", json_file=True) from None
+                recs = doc.get("scenes") if isinstance(doc, dict) else None
+                if not isinstance(recs, list) or not all(isinstance(r, dict) for r in recs):
+                    raise self.damaged(k, "its JSON is not {\"scenes\": [one object per scene]}", json_file=True)
             self._json[k] = recs
         return recs
 
@@ -160,7 +184,13 @@ class SceneDataset:
         if r >= len(recs):
             return None
         if not isinstance(recs[r], SceneRecord):
-            recs[r] = SceneRecord.from_json(recs[r])  # parsed once, when first asked for
+            try:
+                rec = SceneRecord.from_json(recs[r])  # parsed once, when first asked for
+            except (ValueError, TypeError, KeyError, IndexError, AttributeError) as e:
+                raise self.damaged(k, f"scene {r}'s record: {e}", json_file=True) from None
+            if not rec.sources:
+                raise self.damaged(k, f"scene {r}'s record lists no sources", json_file=True)
+            recs[r] = rec
         return recs[r]
 
     def _shard(self, k: int) -> "_ShardMeta":
@@ -168,20 +198,45 @@ class SceneDataset:
         f = self._file(k)
         m = self._meta.get(k)
         if m is None:
-            lab = f["labels"]
-            m = _ShardMeta(
-                labels={key: lab[key][()] for key in (*LABEL_KEYS, "active")},
-                mics=f[self._group + "mic_positions"][()].astype(np.float32), queries=list(f["query"].asstr()[()]),
-                ids=list(f["scene_id"].asstr()[()]), audio=f[self._group + "audio"],
-                coding=coding_of(f[self._group + "audio"]), raw_chunks=_raw_chunks(f[self._group + "audio"]),
-                fs=int(f.attrs.get("fs", self.fs)), label_hop=float(f.attrs.get("label_hop", self.label_hop)),
-                format=self.format if self._group else as_str(f.attrs.get("format"), self.format),
-                query_columns={**{k: list(f[k].asstr()[()]) for k in ("query_type", "query_relation", "pairing")},
-                               "query_margin": f["query_margin"][()].astype(float).tolist()}
-                if "query_type" in f else None)
+            try:
+                m = self._read_meta(f)
+            except (KeyError, ValueError, TypeError, IndexError, AttributeError, OSError) as e:
+                raise self.damaged(k, str(e).split(" (")[0] if isinstance(e, KeyError) else str(e)) from None
             self._check_pair(k, m.ids)
             self._meta[k] = m
         return m
+
+    def _read_meta(self, f: h5py.File) -> "_ShardMeta":
+        """A shard's metadata, its shapes checked: N scenes of S sources over F frames."""
+        g = self._group
+        need = [f"labels/{key}" for key in (*LABEL_KEYS, "active")] + [g + "mic_positions", "query", "scene_id",
+                                                                        g + "audio"]
+        absent = [name for name in need if name not in f]
+        if absent:
+            raise ValueError(f"no {', '.join(absent)}")
+        labels = {key: f["labels"][key][()] for key in (*LABEL_KEYS, "active")}
+        ids = list(f["scene_id"].asstr()[()])
+        n = len(ids)
+        shape = labels["azimuth"].shape
+        if len(shape) != 3 or shape[0] != n or shape[1] < 1 or any(v.shape != shape for v in labels.values()):
+            raise ValueError(f"labels of shapes {sorted({str(list(v.shape)) for v in labels.values()})} for {n} "
+                             f"scenes; expected [scenes, sources, frames] each")
+        mics, audio = f[g + "mic_positions"][()], f[g + "audio"]
+        if mics.ndim != 3 or mics.shape[0] != n or mics.shape[2] != 3 or not audio.shape or audio.shape[0] != n:
+            raise ValueError(f"mic_positions of shape {list(mics.shape)} and audio of shape {list(audio.shape)} "
+                             f"for {n} scenes")
+        queries = list(f["query"].asstr()[()])
+        columns = None
+        if "query_type" in f:
+            columns = {**{c: list(f[c].asstr()[()]) for c in ("query_type", "query_relation", "pairing")},
+                       "query_margin": f["query_margin"][()].astype(float).tolist()}
+        if len(queries) != n or any(len(v) != n for v in (columns or {}).values()):
+            raise ValueError(f"query columns of another length than its {n} scenes")
+        return _ShardMeta(
+            labels=labels, mics=mics.astype(np.float32), queries=queries, ids=ids, audio=audio,
+            coding=coding_of(audio), raw_chunks=_raw_chunks(audio),
+            fs=int(f.attrs.get("fs", self.fs)), label_hop=float(f.attrs.get("label_hop", self.label_hop)),
+            format=self.format if g else as_str(f.attrs.get("format"), self.format), query_columns=columns)
 
     def _check_pair(self, k: int, ids: list[str]) -> None:
         """A shard's HDF5 and JSON files hold the same scenes, as many as dataset.json says
@@ -233,6 +288,9 @@ class SceneDataset:
         rec = self._record(k, r)
         # Shards pad S to their largest scene; trim to this scene's own sources.
         n_src = len(rec.sources) if rec is not None and rec.sources else m.labels["azimuth"].shape[1]
+        if n_src > m.labels["azimuth"].shape[1]:
+            raise self.damaged(k, f"scene {r}'s record lists {n_src} sources, its labels "
+                                  f"{m.labels['azimuth'].shape[1]}")
         lab = m.labels
         qc, margin = m.query_columns, float("nan")
         if qc is not None:
@@ -363,7 +421,9 @@ class SceneDataset:
 
 
 def open_shard(path: str) -> h5py.File:
-    """An HDF5 shard opened for reading (DatasetError, one line, when it is damaged)."""
+    """An HDF5 shard opened for reading (DatasetError, one line, when it is damaged, or
+    no regular file: a FIFO would keep HDF5 waiting for a writer)."""
+    check_input(path, DatasetError, "a shard is a file: render it again")
     try:
         return h5py.File(path, "r")
     except OSError as e:

@@ -81,6 +81,61 @@ class RoomRecord(JsonFields, _JsonMapping):
         return self.bank is not None
 
 
+# --- the microphones as built ([hardware]; docs/format.md "Hardware") ---------------------------
+
+
+@dataclass(frozen=True)
+class HardwareRecord(JsonFields, _JsonMapping):
+    """One receiver's microphones as drawn for the scene (``[hardware]``; C capsules, D
+    devices): ``profile``; per capsule ``gain_db``, ``delay_us`` (µs), ``highpass_hz`` (0:
+    none) of ``highpass_order``, ``tilt_db`` (dB per octave about 1 kHz), ``self_noise_dba``
+    (dB SPL A-weighted, absent: none) and ``self_noise_dbfs`` (the same in the audio,
+    A-weighted, at ``sensitivity_dbfs``, the level of 94 dB SPL); ``devices`` [C] (each
+    capsule's device), ``clock_offset_us`` and ``clock_ppm`` [D] (each device's lag behind
+    the first at the start and its growth, µs per second), absent for one device;
+    ``response_file``: a measured response's file, absent without."""
+
+    profile: str = key(missing="none")
+    gain_db: list = key(default_factory=list, decode=lambda v: list(v or []))
+    delay_us: list = key(default_factory=list, decode=lambda v: list(v or []))
+    highpass_hz: list = key(default_factory=list, decode=lambda v: list(v or []))
+    highpass_order: int = 2
+    tilt_db: list = key(default_factory=list, decode=lambda v: list(v or []))
+    self_noise_dba: list | None = key(None, omit=unset("self_noise_dba"))
+    self_noise_dbfs: list | None = key(None, omit=unset("self_noise_dbfs"))
+    sensitivity_dbfs: float | None = None
+    devices: list | None = key(None, omit=unset("devices"))
+    clock_offset_us: list | None = key(None, omit=unset("clock_offset_us"))
+    clock_ppm: list | None = key(None, omit=unset("clock_ppm"))
+    response_file: str | None = key(None, omit=unset("response_file"))
+
+    @classmethod
+    def of(cls, hw) -> "HardwareRecord":
+        """The record of a recipe's :class:`~tsel_data.scene.hardware.Hardware`."""
+        def lst(v):
+            return None if v is None else list(v)
+
+        return cls(hw.profile, list(hw.gain_db), list(hw.delay_us), list(hw.highpass_hz), hw.highpass_order,
+                   list(hw.tilt_db), lst(hw.self_noise_dba), lst(hw.self_noise_dbfs()), hw.sensitivity_dbfs,
+                   lst(hw.devices), lst(hw.clock_offset_us), lst(hw.clock_ppm), hw.response_file)
+
+    @property
+    def n_channels(self) -> int:
+        return len(self.gain_db)
+
+    @property
+    def response(self):
+        """None: a measured response's table is in the recipe (the record names its file), so
+        what undoes the hardware from a record (dsp/hardware.py ``unhear``) leaves it."""
+        return None
+
+    def channel_clocks(self) -> tuple[tuple, tuple]:
+        """(offset µs [C], ppm [C]): each capsule's device clock."""
+        dev = self.devices or [0] * self.n_channels
+        off, ppm = self.clock_offset_us or [0.0], self.clock_ppm or [0.0]
+        return tuple(off[d] for d in dev), tuple(ppm[d] for d in dev)
+
+
 @dataclass(frozen=True)
 class ArrayRecord(JsonFields, _JsonMapping):
     """The receiver: ``format`` (its name); ``centre`` [x, y, z] room frame m and ``yaw``
@@ -88,7 +143,8 @@ class ArrayRecord(JsonFields, _JsonMapping):
     ``mic_positions`` [[x, y, z]] array frame m. Only for receivers that have them (absent
     otherwise): ``patterns`` and ``orientations`` [[azimuth, elevation]] degrees of a custom
     array's capsules, ``baffle`` of a sphere array, ``hrtf`` (the SOFA file, as the plan
-    names it) and ``interpolation`` of a binaural receiver."""
+    names it) and ``interpolation`` of a binaural receiver; ``hardware``: its microphones
+    as built (:class:`HardwareRecord`), only with ``[hardware]``."""
 
     format: str = key(missing="")
     centre: list | None = None
@@ -100,15 +156,32 @@ class ArrayRecord(JsonFields, _JsonMapping):
     baffle: str | None = key(None, omit=unset("baffle"))
     hrtf: str | None = key(None, omit=unset("hrtf"))
     interpolation: str | None = key(None, omit=unset("interpolation"))
+    hardware: HardwareRecord | None = key(None, omit=unset("hardware"), encode=_encoded,
+                                          decode=lambda v: None if v is None else HardwareRecord.from_json(v))
 
     @classmethod
-    def of(cls, pose, centre, yaw, mic_positions) -> "ArrayRecord":
+    def of(cls, pose, centre, yaw, mic_positions, hardware: HardwareRecord | None = None) -> "ArrayRecord":
         """The record of a scene's :class:`~tsel_data.receivers.ArrayPose` (``centre`` and
-        ``yaw`` as the scene knows them)."""
+        ``yaw`` as the scene knows them) and its ``hardware`` record, if any."""
         return cls(pose.format, centre, yaw, pose.side, mic_positions,
                    None if pose.patterns is None else list(pose.patterns),
                    None if pose.orientations is None else [list(o) for o in pose.orientations],
-                   pose.baffle, pose.hrtf, pose.interpolation)
+                   pose.baffle, pose.hrtf, pose.interpolation, hardware)
+
+
+def _number(v) -> bool:
+    return v is None or isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _acoustics(v: dict | None) -> dict | None:
+    """A source's ``acoustics`` as read: each descriptor a number or null, the octave
+    bands an object of them (ValueError naming the key otherwise: a damaged record)."""
+    for name, x in (v or {}).items():
+        bands = x if name == "t30_bands_s" and isinstance(x, dict) else {name: x}
+        bad = next((b for b, y in bands.items() if not _number(y)), None)
+        if bad is not None:
+            raise ValueError(f"key 'acoustics' holds {name} = {str(x)[:40]!r}, not a number")
+    return v
 
 
 def _no_pairing(r) -> bool:
@@ -149,7 +222,7 @@ class SourceRecord(JsonFields, _JsonMapping):
     caption_similarity: float | None = key(None, omit=_no_pairing)
     power_db: float | None = key(None, omit=unset("power_db"))  # levels that follow distance only
     # with output.descriptors (absent otherwise): acoustic/descriptors.py, scene/motion.py
-    acoustics: dict | None = key(None, omit=unset("acoustics"))
+    acoustics: dict | None = key(None, omit=unset("acoustics"), decode=_acoustics)
     motion: str | None = key(None, omit=unset("motion"))
 
     @classmethod
@@ -285,6 +358,10 @@ class SceneRecord(JsonFields, _JsonMapping):
     @property
     def recorded(self) -> bool:
         return self.recording is not None
+
+    def receiver(self, fmt: str) -> ArrayRecord | None:
+        """The ArrayRecord of the receiver named ``fmt`` (``array`` or one of ``receivers``), or None."""
+        return next((a for a in (self.array, *self.receivers) if a.format == fmt), None)
 
     @property
     def query_margin(self) -> float:

@@ -20,14 +20,20 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.files import check_input, name_problem
+from ..core.jsonable import JsonFields, key
 from ..core.report import CheckReport
+from ..core.version import __version__
 from ..errors import DatasetError
+from ..scene.recipe import recipe_from_line
+from ..choices import SPLIT_NAME
 from .layout import CONFIG_FILE, DATASET_FILE, PLAN_DIR, Layout
-from .plans import read_plan_doc
+from .plans import read_plan_doc, read_plan_lines, seal_problem
 from .reader import list_splits, open_dataset
 
 RELEASE_FILE = "release.json"
@@ -83,12 +89,46 @@ def differing_parts(want: dict, got: dict) -> list[str]:
 
 
 @dataclass(frozen=True)
+class ClipEntry(JsonFields):
+    """One line of ``clips.jsonl``: a file the plan reads, relative to the corpus."""
+
+    audio: str
+    clip_id: str
+    sha256: str
+    bytes: int
+    captions: list = key(default_factory=list)
+    splits: list = key(default_factory=list)
+    scenes: int = 0
+
+
+@dataclass(frozen=True)
+class ChecksumEntry(JsonFields):
+    """One line of ``checksums/{split}.jsonl``: a scene's checksums (:data:`DIGESTS`) and
+    the files it reads."""
+
+    scene_id: str
+    index: int
+    audio: str
+    labels: str
+    record: str
+    clips: list = key(default_factory=list)
+
+
+_HEX64 = re.compile(r"[0-9a-f]{64}")
+
+
+@dataclass(frozen=True)
 class Release:
-    """A recipe release folder, read: ``doc`` (release.json), ``plan_doc`` (plan/config.json)."""
+    """A recipe release folder, read and checked whole (:func:`load_release`): ``doc``
+    (release.json), ``plan_doc`` (plan/config.json), and each split's recipe lines,
+    checksums and the clips they read."""
 
     root: str
     doc: dict
     plan_doc: dict
+    lines: dict = field(default_factory=dict)  # split -> [recipe line]
+    sums: dict = field(default_factory=dict)  # split -> {scene_id: checksum row}
+    clip_rows: dict = field(default_factory=dict)  # audio name -> clip row
 
     @property
     def splits(self) -> list[str]:
@@ -98,52 +138,114 @@ class Release:
         return os.path.join(self.root, rel)
 
     def recipe_lines(self, split: str) -> list[str]:
-        with open(self.path(plan_file(split)), encoding="utf-8") as f:
-            return [line.rstrip("\n") for line in f if line.strip()]
+        return list(self.lines[split])
 
     def checksums(self, split: str) -> dict:
         """{scene_id: {"index", "audio", "labels", "record", "clips"}} in plan order."""
-        return {e["scene_id"]: e for e in _jsonl(self.path(checksums_file(split)))}
+        return dict(self.sums[split])
 
     def clips(self) -> dict:
         """{audio name: {"clip_id", "sha256", "bytes", "captions", "splits", "scenes"}}."""
-        return {e["audio"]: e for e in _jsonl(self.path(CLIPS_FILE))}
+        return dict(self.clip_rows)
 
 
-def _jsonl(path: str) -> list:
+def _damaged(path: str, why: str) -> DatasetError:
+    return DatasetError(f"{path}: {why}; the release was edited or damaged: download or export it again")
+
+
+def _jsonl(path: str, entry) -> list:
+    """The lines of a release's JSONL file, each checked as an ``entry`` (its keys, their
+    JSON types) before anything reads it."""
+    check_input(path, DatasetError, "the release is damaged: download or export it again")
     out = []
+    n = 0
     try:
         with open(path, encoding="utf-8") as f:
             for n, line in enumerate(f, 1):
                 if line.strip():
-                    out.append(json.loads(line))
+                    row = json.loads(line)
+                    entry.from_json(row)
+                    out.append(row)
     except OSError as e:
         raise DatasetError(f"{path}: cannot read ({e.strerror or e}); the release is incomplete") from None
-    except ValueError as e:
-        raise DatasetError(f"{path}:{n}: damaged line ({e}); the release is damaged: export it again") from None
+    except (ValueError, TypeError, RecursionError) as e:
+        raise _damaged(f"{path}:{n}", f"damaged line ({e})") from None
     return out
 
 
 def load_release(root: str) -> Release:
-    """Read a release folder (DatasetError in one line when it is not one)."""
+    """Read a release folder and check it whole before anything is done with it
+    (DatasetError in one line): release.json's kind, version and splits; the plan's seal
+    (a recipe or the config edited since the release was made is named as such); every
+    recipe line, checksum row and clip row, their keys and types; names that stay inside
+    the corpus; every scene with its checksums, every file a recipe reads listed."""
     root = os.fspath(root)
     path = os.path.join(root, RELEASE_FILE)
+    check_input(root, DatasetError, "a release is the folder `tsel export recipes` wrote", folder=True)
+    check_input(path, DatasetError, "the release is damaged: download or export it again")
     if not os.path.isfile(path):
         raise DatasetError(f"{path} not found: {root} is not a recipe release (`tsel export recipes DIR --out "
                            f"{root}` makes one)")
     try:
         with open(path, encoding="utf-8") as f:
             doc = json.load(f)
-    except (OSError, ValueError) as e:
+    except (OSError, ValueError, RecursionError) as e:
         raise DatasetError(f"{root}: the release is damaged or incomplete ({e}); export it again") from None
-    again = "the release is incomplete or damaged: export it again"
-    plan_doc = read_plan_doc(Layout(root), remedy=(again, again))
-    if not isinstance(doc, dict) or doc.get("kind") != RELEASE_KIND or not isinstance(doc.get("splits"), dict):
+    if not isinstance(doc, dict) or not str(doc.get("kind", "")).startswith(RELEASE_KIND):
         raise DatasetError(f"{path} is not a tsel-data recipe release")
-    if int(doc.get("release_version", 0)) > RELEASE_VERSION:
-        raise DatasetError(f"{path} is release version {doc['release_version']}, newer than this tsel-data reads "
-                           f"({RELEASE_VERSION}); update tsel-data")
-    return Release(root, doc, plan_doc)
+    version = doc.get("release_version")
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise _damaged(path, f"release_version is {version!r}, not a whole number")
+    if version > RELEASE_VERSION or doc["kind"] != RELEASE_KIND:
+        what = f"release version {version}" if version > RELEASE_VERSION else f"a {doc['kind']!r}"
+        raise DatasetError(f"{path} is {what} (made by tsel-data {doc.get('version', '?')}), which this tsel-data "
+                           f"({__version__}, release version {RELEASE_VERSION}) does not read; update tsel-data: pip "
+                           f"install -U tsel-data")
+    splits = doc.get("splits")
+    if not isinstance(splits, dict) or not splits:
+        raise _damaged(path, "it lists no splits")
+    for split in splits:
+        if not SPLIT_NAME.fullmatch(split):
+            raise _damaged(path, f"split {split!r} is not a plain name")
+    layout = Layout(root)
+    again = "the release is incomplete or damaged: export it again"
+    plan_doc = read_plan_doc(layout, remedy=(again, again))
+    problem = seal_problem(layout, plan_doc, splits=list(splits), edited="after the release was made")
+    if problem:
+        raise DatasetError(f"{problem}; the release was edited: its recipes are not the ones its checksums hold, "
+                           f"download or export it again")
+    lines, sums = {}, {}
+    for split in splits:
+        lines[split] = read_plan_lines(layout, split)
+        ids = []
+        for n, line in enumerate(lines[split], 1):
+            ids.append(recipe_from_line(layout.plan_file(split), n, line).scene_id)
+        rows = _jsonl(os.path.join(root, checksums_file(split)), ChecksumEntry)
+        sums[split] = {r["scene_id"]: r for r in rows}
+        bad = next((r for r in rows if not all(_HEX64.fullmatch(r[p]) or (p == "record" and not r[p])
+                                               for p in PARTS)), None)
+        if bad is not None:
+            raise _damaged(os.path.join(root, checksums_file(split)), f"scene {bad['scene_id']}: a checksum is not "
+                                                                      f"64 hex digits")
+        if list(sums[split]) != ids:
+            lost = next((i for i in ids if i not in sums[split]), None) or next(i for i in sums[split] if i not in ids)
+            raise _damaged(os.path.join(root, checksums_file(split)),
+                           f"its scenes are not those of {plan_file(split)} ({len(rows)} checksum rows, {len(ids)} "
+                           f"recipes; e.g. {lost})")
+    clip_rows = {}
+    for row in _jsonl(os.path.join(root, CLIPS_FILE), ClipEntry):
+        why = name_problem(row["audio"])
+        if why or not _HEX64.fullmatch(row["sha256"]) or row["bytes"] < 0:
+            raise _damaged(os.path.join(root, CLIPS_FILE), f"clip {row['audio']!r}: " + (
+                f"the name {why}" if why else "its sha256 or size is not one"))
+        clip_rows[row["audio"]] = row
+    for split in splits:
+        for r in sums[split].values():
+            unlisted = [c for c in r["clips"] if c not in clip_rows]
+            if unlisted:
+                raise _damaged(os.path.join(root, CLIPS_FILE), f"it does not list {unlisted[0]}, which scene "
+                                                               f"{r['scene_id']} reads")
+    return Release(root, doc, plan_doc, lines, sums, clip_rows)
 
 
 def read_rebuild_report(root: str) -> dict | None:

@@ -30,6 +30,8 @@ class Scene:
                    name -> (audio [C, T], mic_positions [C, 3]); None without them (the
                    reader opens them with ``receiver=NAME``).
     noise:         with ``[noise]``, kind -> (snr_db or None, level_dbfs); else None.
+    channel_swap:  the channel-swap transform the scene went through (``tsel_data.augment``,
+                   e.g. ``"az+90 -el"``), None as recorded.
 
     The renderer returns this type too (``render_scene``; the on-the-fly source hands it
     on as it is), and the shard writer stores it.
@@ -55,6 +57,7 @@ class Scene:
     query_margin: float = float("nan")
     receivers: dict | None = None
     noise: dict | None = None
+    channel_swap: str | None = None
 
     def __post_init__(self):
         # the query facts are the record's; kept flat for readers opened without records

@@ -25,8 +25,9 @@ from .codings import create_audio, encode
 from .dataset import FORMAT_VERSION, ShardEntry
 from .integrity import FileSeal, Seal
 from .layout import Layout, shard_names
-from .layout import DESCRIPTORS_GROUP, NOISE_GROUP, RECEIVERS_GROUP
+from .layout import DESCRIPTORS_GROUP, HARDWARE_GROUP, NOISE_GROUP, RECEIVERS_GROUP
 from .records import LABEL_KEYS
+from .sanity import check_scene
 from .scene import Scene
 
 # Space a write needs beyond its bytes (HDF5 metadata, the file system), as a fraction:
@@ -48,6 +49,36 @@ def _query_row(s: Scene) -> dict | None:
         return None
     return {"query_type": rec.query_type, "query_relation": rec.query_relation or "", "query_margin": rec.query_margin,
             "pairing": rec.pairing}
+
+
+# Per-scene columns of a shard of a dataset with [hardware] (docs/format.md "Microphones as built"),
+# per receiver: name -> (dtype, fill where a scene has none). Per capsule [N, C] but
+# sensitivity_dbfs and highpass_order [N]; a capsule's clock is its device's.
+HARDWARE_COLUMNS = {"gain_db": np.float32, "delay_us": np.float32, "highpass_hz": np.float32,
+                    "tilt_db": np.float32, "self_noise_dba": np.float32, "self_noise_dbfs": np.float32,
+                    "device": np.int16, "clock_offset_us": np.float32, "clock_ppm": np.float32,
+                    "sensitivity_dbfs": np.float32, "highpass_order": np.int16}
+
+
+def _hardware_rows(rec) -> list[dict | None]:
+    """Each receiver's values of :data:`HARDWARE_COLUMNS` (the record's ``array`` first,
+    then its ``receivers``), None where a receiver has no hardware."""
+    if rec is None:
+        return []
+    out = []
+    for a in (rec.array, *rec.receivers):
+        hw = a.hardware
+        if hw is None:
+            out.append(None)
+            continue
+        nan = [float("nan")] * hw.n_channels
+        offset, ppm = hw.channel_clocks()
+        out.append({"gain_db": hw.gain_db, "delay_us": hw.delay_us, "highpass_hz": hw.highpass_hz,
+                    "tilt_db": hw.tilt_db, "self_noise_dba": hw.self_noise_dba or nan,
+                    "self_noise_dbfs": hw.self_noise_dbfs or nan, "device": hw.devices or [0] * hw.n_channels,
+                    "clock_offset_us": offset, "clock_ppm": ppm, "sensitivity_dbfs": hw.sensitivity_dbfs,
+                    "highpass_order": hw.highpass_order})
+    return out
 
 
 def _descriptor_row(s: Scene) -> dict | None:
@@ -106,6 +137,7 @@ class ShardWriter:
         self.tmp = f"{self.h5_path}.tmp-{os.getpid()}"
         self.kept: list[Scene] = []  # without audio and record
         self.query_rows: list[dict | None] = []
+        self.hardware_rows: list[list] = []  # per scene, per receiver (_hardware_rows)
         self.descriptor_rows: list[dict | None] = []
         self.records: list[str] = []  # each scene's record, as it appears in the JSON shard
         self.entry: ShardEntry | None = None
@@ -124,10 +156,12 @@ class ShardWriter:
         return self
 
     def add(self, scene: Scene) -> None:
-        """Write one scene (the shard's scenes in order)."""
+        """Write one scene (the shard's scenes in order); a scene unfit to be written (NaN
+        samples, levels far from its config's: store/sanity.py) stops the shard first."""
         i = len(self.kept)
         if i >= self.n:
             raise ValueError(f"shard {self.h5_rel} holds {self.n} scenes; got one more")
+        check_scene(scene)
         try:
             others = scene.receivers or {}
             size = scene.audio.nbytes + sum(a.nbytes for a, _ in others.values())
@@ -151,6 +185,7 @@ class ShardWriter:
         # keep the record as the JSON text it becomes: a fraction of its Python objects' size
         self.records.append(json.dumps(jsonable(scene.record), ensure_ascii=False, indent=1).replace("\n", "\n  "))
         self.query_rows.append(_query_row(scene))
+        self.hardware_rows.append(_hardware_rows(scene.record))
         self.descriptor_rows.append(_descriptor_row(scene))
         self.kept.append(replace(scene, audio=None, record=None,
                                  receivers={k: (None, m) for k, (_, m) in (scene.receivers or {}).items()}))
@@ -202,6 +237,11 @@ class ShardWriter:
                     vals = [((s.noise or {}).get(kind) or (None, None))[col] for s in scenes]
                     h.create_dataset(f"{NOISE_GROUP}/{kind}/{key}", data=np.array(
                         [np.nan if v is None else v for v in vals], dtype=np.float32), track_times=False)
+            if any(r and any(r) for r in self.hardware_rows):  # only with [hardware]: other shards keep their bytes
+                groups = ["", *(f"{RECEIVERS_GROUP}/{name}/" for name in scenes[0].receivers or {})]
+                for k, prefix in enumerate(groups):
+                    _write_hardware(h, prefix + HARDWARE_GROUP, [r[k] if k < len(r) else None
+                                                                 for r in self.hardware_rows])
             if any(self.descriptor_rows):  # only with output.descriptors: other shards keep their bytes
                 self._write_descriptors(h, n_src, str_t)
             for name in self._others:  # each further receiver: its audio (written above) and capsules
@@ -273,6 +313,22 @@ def _hash_and_sync(path: str) -> str:
         digest = hashlib.file_digest(f, "sha256").hexdigest()
         os.fsync(f.fileno())
     return digest
+
+
+def _write_hardware(h, group: str, rows: list) -> None:
+    """One receiver's :data:`HARDWARE_COLUMNS` of every scene into ``group`` (NaN / 0 for
+    a scene without hardware)."""
+    if not any(rows):
+        return
+    n_ch = max(len(r["gain_db"]) for r in rows if r)
+    for key, dtype in HARDWARE_COLUMNS.items():
+        scalar = key in ("sensitivity_dbfs", "highpass_order")
+        fill = 0 if np.issubdtype(dtype, np.integer) else np.nan
+        data = np.full((len(rows),) if scalar else (len(rows), n_ch), fill, dtype=dtype)
+        for i, r in enumerate(rows):
+            if r:
+                data[i] = r[key] if scalar else np.asarray(r[key], dtype=np.float64)
+        h.create_dataset(f"{group}/{key}", data=data, track_times=False)
 
 
 def _shard_json(header: dict, records: list[str]) -> bytes:

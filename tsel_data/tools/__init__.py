@@ -5,6 +5,6 @@ between the half that writes datasets and the half that reads them.
 Scores (``evaluate``; the DCASE SELD metrics ``seld`` and ``evaluate_dcase``), label
 encodings for trainers (``labels``), labels held against a classical localizer
 (``verify``), summaries (``stats``), pictures and listening (``picture``, ``inspect``,
-``sheet``), a WebDataset export streamed back (``streaming``) and the PyTorch wrappers
-(``torch``).
+``sheet``), channel-swap augmentation with exact label transforms (``augment``), a
+WebDataset export streamed back (``streaming``) and the PyTorch wrappers (``torch``).
 """

@@ -34,11 +34,11 @@ every active frame.
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.files import check_input
 from ..core.geometry import azimuth_difference, circular_mean
 from ..errors import DatasetError, PredictionError
 from ..store.reader import open_dataset
@@ -121,8 +121,7 @@ class EvalResult:
 def read_predictions(path: str) -> dict[str, Prediction]:
     """Parse a JSONL prediction file (PredictionError naming the line on any problem)."""
     preds: dict[str, Prediction] = {}
-    if os.path.exists(path) and not os.path.isfile(path):  # a FIFO or device would block
-        raise PredictionError(f"{path}: not a regular file; give the prediction file itself")
+    check_input(path, PredictionError, "give the prediction file itself")  # a FIFO or device would block
     try:
         with open(path, "rb") as fh:
             raw_lines = fh.read().split(b"\n")
@@ -177,6 +176,8 @@ def parse_prediction(obj, where: str = "prediction") -> Prediction:
                               f"or null")
     try:
         val = np.asarray(value, dtype=np.float64)
+    except OverflowError:  # an integer of 400 digits: JSON allows it, a float does not hold it
+        raise PredictionError(f"{where}: a number too large for a float; azimuths are degrees") from None
     except (TypeError, ValueError):
         raise PredictionError(f"{where}: values must be numbers (or lists of numbers), each list the same "
                               f"length") from None

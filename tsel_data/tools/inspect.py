@@ -17,7 +17,7 @@ from .picture import (frame_runs, frame_segments, noise_parts, plot_scene, query
                       wrap_breaks)
 
 # the drawing lives in tools/picture.py; these names stay importable from here
-__all__ = ["find_scene", "summary", "query_lines", "write_wav", "write_stereo", "stereo_path", "inspect_outputs",
+__all__ = ["find_scene", "summary", "hardware_lines", "query_lines", "write_wav", "write_stereo", "stereo_path", "inspect_outputs",
            "inspect_scene", "plot_scene", "source_tracks", "frame_runs", "frame_segments", "wrap_breaks"]
 
 
@@ -34,7 +34,7 @@ def find_scene(root: str, ref: str, split: str | None = None, receiver: str | No
             raise TselError(f"scene {ref!r}: expected SPLIT/INDEX with an integer index, e.g. test/0") from None
         with open_dataset(root, sp, unfinished=True, receiver=receiver) as ds:
             try:
-                return ds[ds.position_of(i) if i >= 0 else i]
+                return ds.finite(ds[ds.position_of(i) if i >= 0 else i])
             except IndexError:
                 if not ds.doc.finished and 0 <= i < ds.doc.planned.get(sp, 0):
                     raise DatasetError(f"scene {ref!r} is not rendered yet (its shard is unfinished; {len(ds)} "
@@ -45,7 +45,7 @@ def find_scene(root: str, ref: str, split: str | None = None, receiver: str | No
     for sp in order:
         with open_dataset(root, sp, unfinished=True, receiver=receiver) as ds:
             if ref in ds:
-                return ds.by_id(ref)
+                return ds.finite(ds.by_id(ref))
     where = f"split {split!r}" if split else f"splits {', '.join(splits)}"
     raise DatasetError(f"no scene {ref!r} in {where} of {root}; give a scene id or SPLIT/INDEX such as "
                        f"{splits[0]}/0")
@@ -118,10 +118,52 @@ def summary(scene: Scene) -> str:
             lines.append(f"        {described}")
         for cap in info.captions:
             lines.append(f"        caption: {cap}")
+    hw = getattr(rec.receiver(scene.format), "hardware", None)
+    if hw is not None:
+        lines += hardware_lines(hw, dur)
     if rec.noise:
         lines.append("noise (unlabelled):")
         lines += [f"  {kind:<9} {'  '.join(rest)}" for kind, *rest in (noise_parts(n) for n in rec.noise)]
     return "\n".join(lines)
+
+
+PROFILE_WORDS = {"mems": "a typical MEMS board", "measurement": "a typical measurement-grade array"}
+
+
+def _range(values, unit: str, fmt: str = "{:+.2f}", spread: bool = False) -> str:
+    lo, hi = min(values), max(values)
+    if lo == hi:
+        return f"{fmt.format(lo)} {unit}"
+    return f"{fmt.format(lo)} to {fmt.format(hi)} {unit}" + (f" (spread {hi - lo:.2f})" if spread else "")
+
+
+def hardware_lines(hw, duration: float) -> list[str]:
+    """The receiver's microphones as built (``[hardware]``, a HardwareRecord), in words."""
+    who = PROFILE_WORDS.get(hw.profile, "as configured")
+    lines = [f"microphones as built ({who}; not in the labels, which stay the geometry):"]
+    lines.append(f"  gain off nominal {_range(hw.gain_db, 'dB', spread=True)}: " + " ".join(f"{g:+.2f}" for g in hw.gain_db))
+    lines.append(f"  delay off nominal {_range(hw.delay_us, 'us', spread=True)}: " + " ".join(f"{d:+.2f}" for d in hw.delay_us))
+    parts = []
+    corners = [f for f in hw.highpass_hz if f > 0]
+    if corners:
+        order = {1: "1st", 2: "2nd", 3: "3rd"}.get(hw.highpass_order, f"{hw.highpass_order}th")
+        parts.append(f"high-pass at {_range(corners, 'Hz', '{:.0f}')} ({order} order)")
+    if any(hw.tilt_db):
+        parts.append(f"tilt {_range(hw.tilt_db, 'dB per octave about 1 kHz')}")
+    if hw.response_file:
+        parts.append(f"measured response {hw.response_file}")
+    if parts:
+        lines.append("  response: " + "; ".join(parts))
+    if hw.self_noise_dba:
+        lines.append(f"  self-noise {_range(hw.self_noise_dba, 'dB SPL(A)', '{:.1f}')}, i.e. "
+                     f"{_range(hw.self_noise_dbfs, 'dBFS(A)', '{:.1f}')} at {hw.sensitivity_dbfs:g} dBFS for "
+                     f"94 dB SPL")
+    for d in range(1, len(hw.clock_offset_us or ())):
+        off, ppm = hw.clock_offset_us[d], hw.clock_ppm[d]
+        caps = [c for c, dev in enumerate(hw.devices) if dev == d]
+        lines.append(f"  device {d} (channels {', '.join(map(str, caps))}) lags device 0 by {off:+.1f} us at the "
+                     f"start, drifting {ppm:+.2f} ppm ({off + ppm * duration:+.1f} us at the end)")
+    return lines
 
 
 def acoustics_text(source) -> str | None:

@@ -88,7 +88,7 @@ def _scenes(root: str, chosen, receiver):
         with open_dataset(root, sp, unfinished=True, receiver=receiver) as ds:
             for s, i in chosen:
                 if s == sp:
-                    yield ds[i]
+                    yield ds.finite(ds[i])
 
 
 # --- labels in words ------------------------------------------------------------------------------------------------

@@ -22,6 +22,7 @@ from ..core.atomic import atomic_output
 from ..core.geometry import azimuth_difference, circular_mean
 from ..core.report import band_limited_text
 from ..errors import DatasetError, TselError
+from ..core.files import is_regular
 from ..store.layout import Layout
 from ..store.dataset import load_dataset_doc
 from ..store.plans import local_roots, read_plan_doc
@@ -254,6 +255,8 @@ def band_limited_targets(root: str, audio: dict[str, str]) -> dict | None:
     corpus = layout.demo_corpus if corpus.startswith("builtin:") else corpus
     rates: Counter = Counter()
     for rel in audio.values():
+        if not is_regular(os.path.join(corpus, rel)):
+            return None  # gone, or a FIFO libsndfile would wait on
         try:
             rate = sf.info(os.path.join(corpus, rel)).samplerate
         except (sf.LibsndfileError, RuntimeError, OSError):

@@ -30,6 +30,7 @@ import numpy as np
 from ..errors import DatasetError
 from ..formats.webdataset import iter_samples, read_index, scene_of_sample
 from ..runtime.malloc import reuse_freed_memory
+from .augment import random_swap
 
 
 class SceneStream:
@@ -48,10 +49,16 @@ class SceneStream:
         Seeds the shard order and the buffer.
     with_record : bool
         Parse each scene's record (``Scene.record``); False leaves it None (faster).
+    channel_swap : bool
+        Each scene through one of its receiver's channel-swap symmetries (:mod:`tsel_data.augment`),
+        drawn per (seed, epoch, scene index): channels permuted, labels transformed exactly,
+        ``Scene.channel_swap`` naming it.
     """
 
-    def __init__(self, source, split: str = "train", shuffle: int = 0, seed: int = 0, with_record: bool = True):
+    def __init__(self, source, split: str = "train", shuffle: int = 0, seed: int = 0, with_record: bool = True,
+                 channel_swap: bool = False):
         self.split, self.shuffle, self.seed, self.with_record = split, int(shuffle), int(seed), with_record
+        self.channel_swap = channel_swap
         self.epoch = 0
         self.paths, self.counts = _shards(source, split)
 
@@ -93,7 +100,8 @@ class SceneStream:
         for path in shards:
             for key, sample in iter_samples(path):
                 if n % stride == offset:
-                    yield scene_of_sample(key, sample, self.with_record)
+                    scene = scene_of_sample(key, sample, self.with_record)
+                    yield random_swap(scene, self.seed, self.epoch, scene.index)[0] if self.channel_swap else scene
                 n += 1
 
 

@@ -32,7 +32,9 @@ except ImportError as e:  # pragma: no cover - exercised only without torch
 import numpy as np
 
 from ..runtime.pool import prepare_worker
+from ..receivers import receiver
 from ..store.reader import open_dataset
+from .augment import channel_swaps, random_swap
 from .labels import scene_targets
 from .streaming import SceneStream
 
@@ -65,18 +67,27 @@ class Dataset(torch.utils.data.Dataset):
     with_record : bool
         Add the scene's :class:`~tsel_data.store.records.SceneRecord` (batch with
         :func:`collate`).
+    channel_swap : bool
+        Channel-swap augmentation (:mod:`tsel_data.augment`): each item goes through one of
+        its receiver's symmetries, drawn per (seed, epoch, index), its channels permuted and
+        its labels transformed exactly; the item's ``channel_swap`` names it (``"az"``: as
+        recorded). A receiver without symmetries is refused here, in one line.
 
     ``set_epoch(e)`` before each epoch draws epoch *e*'s scenes from an on-the-fly source
-    (and its captions with ``query="any"``); an index may also be a pair ``(epoch, i)``,
-    which works with persistent workers too.
+    (and its captions with ``query="any"``, its channel swaps); an index may also be a pair
+    ``(epoch, i)``, which works with persistent workers too.
     """
 
     def __init__(self, scenes, split: str = "train", sigma: float = 5.0, transform=None, query: str = "dataset",
-                 with_record: bool = False):
+                 with_record: bool = False, channel_swap: bool = False):
         if query not in QUERIES:
             raise ValueError(f"query must be one of {QUERIES}, got {query!r}")
         self.scenes = open_dataset(scenes, split) if isinstance(scenes, (str, os.PathLike)) else scenes
         self.sigma, self.transform, self.query, self.with_record = sigma, transform, query, with_record
+        self.channel_swap = channel_swap
+        fmt = getattr(self.scenes, "format", None)
+        if channel_swap and fmt and not receiver(fmt).configured:
+            channel_swaps(fmt)  # one line now, not in a worker, when the receiver has none
         self.epoch = 0
 
     def set_epoch(self, epoch: int) -> None:
@@ -90,6 +101,8 @@ class Dataset(torch.utils.data.Dataset):
     def __getitem__(self, key) -> dict:
         epoch, i = self._key(key)
         s = self._scene(epoch, i, audio=True)
+        if self.channel_swap:
+            s = random_swap(s, getattr(self.scenes, "seed", 0), epoch, i)[0]
         item = scene_item(s, self.sigma, self._query(s, epoch, i), self.with_record)
         return self.transform(item) if self.transform else item
 
@@ -99,6 +112,8 @@ class Dataset(torch.utils.data.Dataset):
         of it: in a DataLoader worker the tensor is in shared memory, so the batch crosses
         to the trainer without a copy, and :func:`collate` returns it as it is (PyTorch's
         default collate copies it once more)."""
+        if self.channel_swap:  # each scene through its own drawn symmetry: item by item
+            return [self[k] for k in keys]
         keys = [self._key(k) for k in keys]
         read = getattr(self.scenes, "read_audio", None)
         scenes = [self._scene(e, i, audio=read is None) for e, i in keys]
@@ -173,6 +188,8 @@ def scene_item(s, sigma: float, query: str, with_record: bool = False, audio=Non
     }
     if with_record:
         item["record"] = s.record
+    if s.channel_swap is not None:
+        item["channel_swap"] = s.channel_swap
     return item
 
 
@@ -194,8 +211,8 @@ class StreamingDataset(torch.utils.data.IterableDataset):
         initialized, else 0 of 1). Each rank reads its own shards (or, with fewer shards
         than ranks times workers, every ``R·W``-th scene): give every rank as many shards
         (``--shard-size``) so they see as many scenes.
-    sigma, transform, query, with_record
-        As :class:`Dataset`.
+    sigma, transform, query, with_record, channel_swap
+        As :class:`Dataset` (the swaps drawn per (seed, epoch, scene index)).
 
     ``set_epoch(e)`` before each epoch draws epoch *e*'s shard order and buffer (with
     ``persistent_workers=True`` the workers keep the epoch they started with).
@@ -203,10 +220,11 @@ class StreamingDataset(torch.utils.data.IterableDataset):
 
     def __init__(self, source, split: str = "train", shuffle: int = 0, seed: int = 0, sigma: float = 5.0,
                  transform=None, query: str = "dataset", with_record: bool = False, rank: int | None = None,
-                 world_size: int | None = None):
+                 world_size: int | None = None, channel_swap: bool = False):
         if query not in QUERIES:
             raise ValueError(f"query must be one of {QUERIES}, got {query!r}")
-        self.stream = SceneStream(source, split, shuffle=shuffle, seed=seed, with_record=with_record or query == "any")
+        self.stream = SceneStream(source, split, shuffle=shuffle, seed=seed, with_record=with_record or query == "any",
+                                  channel_swap=channel_swap)
         self.sigma, self.transform, self.query, self.with_record = sigma, transform, query, with_record
         self.rank, self.world_size = rank, world_size
 

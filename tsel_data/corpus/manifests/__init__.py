@@ -45,6 +45,7 @@ _HEADERS = ("audiocaps (audiocap_id,youtube_id,start_time,caption), clotho (file
 
 
 def _first_line(name: str, limit: int = 1 << 16) -> str:
+    check_file(name)  # a FIFO would keep the read waiting
     with open(name, "rb") as f:
         head = f.read(limit)
     # Undecodable bytes are the chosen reader's to report, with their line and offset.

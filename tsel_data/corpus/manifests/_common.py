@@ -16,8 +16,10 @@ import io
 import os
 import re
 import string
+import unicodedata
 from typing import Iterator, Sequence
 
+from ...core.files import path_problem, unicode_match
 from ...errors import ManifestError
 
 AUDIO_EXTENSIONS = (".wav", ".flac", ".mp3", ".ogg", ".opus", ".m4a", ".aif", ".aiff")
@@ -49,8 +51,9 @@ def check_file(name: str) -> None:
     if os.path.isdir(name):
         raise fail(name, "is a directory, not a manifest file",
                    "pass the CSV/JSON/JSONL file itself")
-    if not os.path.isfile(name):  # a FIFO or device would block or never end
-        raise fail(name, "is not a regular file (a pipe, device or socket)", "pass the manifest file itself")
+    problem = path_problem(name)  # a FIFO or device would block or never end
+    if problem:
+        raise fail(name, problem, "pass the manifest file itself")
 
 
 def read_text(name: str) -> str:
@@ -273,11 +276,14 @@ def template_list(template, default: Sequence[str]) -> tuple[str, ...]:
 
 class FileIndex:
     """Which files exist, one directory listing per folder (a 50k-file folder lists in
-    tens of milliseconds; a ``stat`` per candidate name would take seconds)."""
+    tens of milliseconds; a ``stat`` per candidate name would take seconds). Names match
+    whatever their Unicode normalisation: a corpus copied from macOS stores ``café.wav``
+    decomposed (NFD) while its manifest spells it composed (NFC)."""
 
     def __init__(self):
         self._names: dict[str, frozenset] = {}
         self._audio: dict[str, bool] = {}
+        self._nfc: dict[str, dict] = {}  # folder -> {NFC of a non-ASCII name: the name on disk}
 
     def listing(self, folder: str) -> frozenset:
         """The names in ``folder`` (empty if it does not exist)."""
@@ -299,10 +305,26 @@ class FileIndex:
 
     def exists(self, base: str, rel: str) -> bool:
         """Whether ``rel`` (relative to the absolute folder ``base``, or absolute) exists."""
+        return self.on_disk(base, rel) is not None
+
+    def on_disk(self, base: str, rel: str) -> str | None:
+        """The path of ``rel`` (relative to the absolute folder ``base``, or absolute) as
+        the disk spells it, or None when no file has that name in any normalisation."""
         if _SIMPLE and "/" not in rel and rel[:1] not in ("~", "."):
-            return rel in self.listing(base)  # a plain name: no path to build
-        folder, name = os.path.split(resolve(base, rel))
-        return name in self.listing(folder)
+            folder, name = base, rel  # a plain name: no path to build
+        else:
+            folder, name = os.path.split(resolve(base, rel))
+        if name in self.listing(folder):
+            return resolve(folder, name)
+        if name.isascii():
+            return None
+        if folder not in self._nfc:
+            self._nfc[folder] = {unicodedata.normalize("NFC", n): n for n in self.listing(folder) if not n.isascii()}
+        found = self._nfc[folder].get(unicodedata.normalize("NFC", name))
+        if found is not None:
+            return resolve(folder, found)
+        there = unicode_match(os.path.join(folder, name))  # a folder on the way spelt otherwise
+        return os.path.normpath(there) if there else None
 
 
 class AudioSearch:
@@ -318,15 +340,17 @@ class AudioSearch:
         self.index = FileIndex()
 
     def find(self, rels: Sequence[str]) -> str:
-        """The audio file of a clip whose file may be called any of ``rels``."""
-        if len(rels) == 1 and len(self.bases) == 1:  # one name, one folder: no need to look at the disk
-            return resolve(self.bases[0], rels[0])
+        """The audio file of a clip whose file may be called any of ``rels``, as the disk
+        spells its name (a name the manifest writes composed may be stored decomposed)."""
+        if len(rels) == 1 and len(self.bases) == 1 and rels[0].isascii():
+            return resolve(self.bases[0], rels[0])  # one name, one folder: no need to look at the disk
         for base in self.bases:
             for rel in rels:
                 if "/" not in rel and not self.index.holds_audio(base):
                     break  # no audio file here at all (nothing downloaded yet): no candidate can exist
-                if self.index.exists(base, rel):
-                    return resolve(base, rel)
+                found = self.index.on_disk(base, rel)
+                if found is not None:
+                    return found
         return resolve(self.bases[0], rels[0])
 
 
