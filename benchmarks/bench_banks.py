@@ -344,7 +344,7 @@ def planned_section(preset, n, reps=6):
                 'corpus.dir="builtin:demo"', 'corpus.format="audiocaps"', 'scene.motion="moving"', 'scene.path="line"', f'scene.format="{fmt}"',
                 'scene.scenario="two-directional"', 'scene.interferers=1'])
             for label, render in (("before", before_image), ("now", now_image)):
-                placement.KNOT_TRAVEL_M = np.inf if label == "before" else travel
+                placement.KNOT_TRAVEL_M = dict.fromkeys(travel, np.inf) if label == "before" else travel
                 for i in range(n):
                     try:
                         r = src.recipe(i)

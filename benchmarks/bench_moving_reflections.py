@@ -16,6 +16,11 @@ scenes: whole moving scenes end to end, `tsel generate` of --scenes 10 s scenes 
    preset, every source moving on arcs and lines at 10/20/40 °/s, one worker) with this
    checkout and with --against REV (default the commit before image groups) in a git
    worktree, interleaved --rounds times: CPU seconds of each run and the median ratio.
+ratio: a simulated moving scene against a static one (the baseline), both rendered here
+   (``render_scene``, one process set up as a render worker): --scenes demo scenes of
+   10 s with two directional sources, static, and the same plan's scenes with every
+   source moving on arcs and lines at 10/20/40 °/s; interleaved --rounds times, CPU ms
+   per scene, medians and the median of the paired ratios.
 """
 from __future__ import annotations
 
@@ -28,7 +33,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests", "acoustics"))
 
 from tsel_data.acoustics import simulate_rirs  # noqa: E402
 from tsel_data.acoustics.image_paths import GROUPS  # noqa: E402
@@ -70,7 +75,7 @@ def accuracy():
             if "ref" not in out:
                 out["ref"] = dense_image(room, array, pos, x, FS, timing=timing)
             rs = shoebox_rirs(room, array, pos(knots), FS, one_source=True, tail_apart=True, groups=groups,
-                              transition=timing[0], length=timing[1])
+                              transition=timing[0], length=timing[1], image_highpass=name == "before")
             y = moving_image_part(x, rs, knots, FS)[:, :n]
             ref = out["ref"]
             out[name] = 10 * np.log10(np.sum(ref**2) / np.sum((ref - y) ** 2))
@@ -105,7 +110,8 @@ def _paths(n, seed=0):
 
 
 def _path_image(room, array, knots, pos, x, groups):
-    rs = simulate_rirs(room, array, pos(knots), FS, one_source=True, tail_apart=True, groups=groups)
+    rs = simulate_rirs(room, array, pos(knots), FS, one_source=True, tail_apart=True, groups=groups,
+                       image_highpass=groups == 1)
     image = moving_image_part(x, rs, knots, FS)[:, :len(x)]
     if rs.tail is not None:
         image = image + render_static(x, rs.tail)[:, :len(x)]
@@ -170,14 +176,57 @@ def scenes(n, rounds, against):
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def ratio(n, rounds):
+    """A moving scene's render against a static one's (the module docstring)."""
+    import shutil
+    import tempfile
+
+    from tsel_data.config import load_config
+    from tsel_data.corpus.demo import synth_corpus
+    from tsel_data.plan.sampler import plan_scene, prepare_views
+    from tsel_data.render.mix import render_scene
+    from tsel_data.runtime.pool import prepare_worker
+    from tsel_data.store.layout import Layout
+
+    prepare_worker()
+    tmp = tempfile.mkdtemp(prefix="bench-moving-ratio-")
+    os.environ["TSEL_CACHE_DIR"] = os.path.join(tmp, "cache")
+    try:
+        corpus = os.path.join(tmp, "corpus")
+        synth_corpus(corpus)
+        plans = {}
+        for name, more in (("static", []), ("moving", ['scene.motion="moving"', 'scene.path=["choose", ["arc", "line"]]'])):
+            cfg = load_config(preset="demo", corpus_dir=corpus, splits={"train": n, "val": 0, "test": 0},
+                              overrides=['scene.scenario="two-directional"', *more])
+            _, views = prepare_views(cfg, Layout(os.path.join(tmp, "home")))
+            plans[name] = ([plan_scene(cfg, "train", i, views["train"]) for i in range(n)], views["train"].roots)
+        for recipes, roots in plans.values():  # warm-up: imports, FFT plans, the clip cache
+            render_scene(recipes[0], roots)
+        cpu = {name: [] for name in plans}
+        for _ in range(rounds):
+            for name, (recipes, roots) in plans.items():
+                t0 = time.process_time()
+                for r in recipes:
+                    render_scene(r, roots)
+                cpu[name].append(1e3 * (time.process_time() - t0) / n)
+        st, mv = np.asarray(cpu["static"]), np.asarray(cpu["moving"])
+        print(f"ratio: {n} demo scenes of 10 s, 2 directional sources, CPU ms per scene, median of {rounds} "
+              f"(load {os.getloadavg()[0]:.1f}): static {np.median(st):.1f}   moving {np.median(mv):.1f}   "
+              f"ratio {np.median(mv / st):.2f} (paired {np.min(mv / st):.2f}-{np.max(mv / st):.2f})")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sources", type=int, default=8, help="cost: 10 s sources (lines and arcs, 10 and 40 °/s)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--scenes", type=int, default=12, help="scenes: 10 s scenes per run")
     ap.add_argument("--against", default="64636ea", help="scenes: the commit to compare with")
-    ap.add_argument("--sections", default="accuracy,cost,scenes")
+    ap.add_argument("--sections", default="accuracy,cost,scenes,ratio")
     args = ap.parse_args()
+    if "ratio" in args.sections:
+        ratio(args.scenes, args.rounds)
     if "accuracy" in args.sections:
         accuracy()
     if "cost" in args.sections:

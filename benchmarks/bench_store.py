@@ -14,7 +14,18 @@ All on the built-in demo corpus, 10 s 24 kHz mic4 scenes, measured in one run:
 3. **peak memory of a render worker** (``--rss-sizes``): one process renders and writes
    one shard of N scenes (``render_shard``, as a ``tsel render`` worker does); its peak
    resident set size (VmHWM of a fresh subprocess) per shard size.
-4. **clips as they come**: the time to render a scene (``render_scene``, one process,
+4. **a DataLoader** (needs torch; ``--loader-repeats``): the float32 scenes through
+   ``tsel_data.torch.Dataset`` and a DataLoader of batches of 8 with 0, 1 and 2 workers,
+   item by item (PyTorch's default fetch and collate, as before ``__getitems__``) and in
+   batches (``__getitems__``: one ``read_audio(out=)`` into a shared-memory tensor,
+   handed on by ``collate`` without a copy). Scenes/s, median of interleaved passes, and the ratio to
+   item by item without workers (the baseline); and the worst ratio of a DataLoader with
+   workers to the same way without (the goal: never below 1).
+5. **writing a scene's audio**: one shard of 16 scenes written through h5py
+   (``audio[i] = x``, the baseline and the writer's way) and through
+   ``write_direct_chunk`` (the same samples in another file layout, so not used:
+   store/writer.py), CPU ms per scene, median of interleaved rounds.
+6. **clips as they come**: the time to render a scene (``render_scene``, one process,
    the clip cache emptied before each scene, as with a large corpus) when the corpus is
    24 kHz mono WAV (the baseline), the same clips as 44.1 kHz stereo 24-bit WAV, and
    those after ``tsel corpus prepare``.
@@ -132,7 +143,7 @@ def peak_rss(corpus, root, size) -> float:
     out = os.path.join(root, f"rss-{size}")
     cfg = load_config(preset="demo", corpus_dir=corpus, splits={"train": size, "val": 0, "test": 0},
                       overrides=[f"output.shard_size={size}"])
-    plan_dataset(cfg, out)
+    plan_dataset(cfg, out, allow_reuse=True)  # a shard of this size, whatever the demo corpus's clip count
     code = RSS_CHILD.format(repo=os.path.join(os.path.dirname(__file__), ".."), out=out)
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     shutil.rmtree(out)
@@ -178,42 +189,128 @@ def scene_cost(corpus, root, n) -> dict:
     return out
 
 
+def loader_rates(out, repeats, touch: bool) -> dict | None:
+    """{(way, workers): scenes/s} through tsel_data.torch.Dataset and a DataLoader."""
+    try:
+        import torch
+    except ImportError:
+        return None
+    from tsel_data.tools.torch import Dataset, collate
+
+    class ItemByItem(Dataset):
+        __getitems__ = None  # PyTorch then fetches ds[i] one by one and stacks them
+
+    loaders = {}
+    for way, cls, coll in (("item by item", ItemByItem, None), ("batched", Dataset, collate)):
+        for workers in (0, 1, 2):
+            loaders[(way, workers)] = torch.utils.data.DataLoader(
+                cls(out, "train"), batch_size=8, num_workers=workers, persistent_workers=workers > 0,
+                collate_fn=coll)
+    for dl in loaders.values():  # start the workers, warm the page cache
+        for _ in dl:
+            pass
+    rates = {key: [] for key in loaders}
+    for _ in range(repeats):
+        for key, dl in loaders.items():  # interleaved: each sees the machine as the others do
+            t0, n = time.perf_counter(), 0
+            for b in dl:
+                n += len(b["audio"])
+                if touch:
+                    float(b["audio"].sum())
+            rates[key].append(n / (time.perf_counter() - t0))
+    del loaders
+    return {key: float(np.median(v)) for key, v in rates.items()}
+
+
+def write_costs(rounds=5, n=16, shape=(4, 240000)) -> dict:
+    """CPU ms per scene to write a shard's audio: h5py setitem against write_direct_chunk."""
+    x = np.random.default_rng(0).standard_normal((n, *shape)).astype(np.float32)
+    path = os.path.join(tempfile.mkdtemp(prefix="tsel-bench-write-"), "w.h5")
+    out = {"h5py audio[i] = x": [], "write_direct_chunk": []}
+    try:
+        for _ in range(rounds):
+            for way in out:
+                t0 = time.process_time()
+                with h5py.File(path, "w", track_order=False, libver=("earliest", "v110")) as h:
+                    d = h.create_dataset("audio", (n, *shape), dtype="float32", chunks=(1, *shape), track_times=False)
+                    for i in range(n):
+                        if way == "write_direct_chunk":
+                            d.id.write_direct_chunk((i, 0, 0), x[i])
+                        else:
+                            d[i] = x[i]
+                out[way].append(1e3 * (time.process_time() - t0) / n)
+                os.remove(path)
+    finally:
+        shutil.rmtree(os.path.dirname(path), ignore_errors=True)
+    return {way: float(np.median(v)) for way, v in out.items()}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scenes", type=int, default=32)
     ap.add_argument("--rss-sizes", default="16,128,1024", help="Shard sizes for the memory test ('' skips it).")
+    ap.add_argument("--loader-repeats", type=int, default=5)
+    ap.add_argument("--sections", default="codings,reader,loader,write,clips,rss")
     args = ap.parse_args()
+    sections = args.sections.split(",")
     root = tempfile.mkdtemp(prefix="tsel-bench-store-")
+    os.environ["TSEL_CACHE_DIR"] = os.path.join(root, "cache")  # this run's clip checks: the user's cache stays
     try:
         corpus = os.path.join(root, "corpus")
         synth_corpus(corpus)
         print(f"{os.cpu_count()} cores; {args.scenes} demo scenes of 10 s, 24 kHz, 4 channels\n")
-        print(f"{'coding':>8} {'MB/scene':>9} {'x float32':>10} {'SNR dB':>8} {'read scenes/s':>14} {'x float32':>10}")
+        codings = ("float32", "int16", "flac") if "codings" in sections else ("float32",)
+        if "codings" in sections:
+            print(f"{'coding':>8} {'MB/scene':>9} {'x float32':>10} {'SNR dB':>8} {'read scenes/s':>14} "
+                  f"{'x float32':>10}")
         rows, ref = {}, None
-        for coding in ("float32", "int16", "flac"):
+        for coding in codings:
             out = make(corpus, root, args.scenes, coding)
             rate, audio = read_all(out)
             rows[coding] = (shard_bytes(out) / args.scenes, rate, audio, out)
         ref_bytes, ref_rate, ref, ref_out = rows["float32"]
-        for coding, (b, rate, audio, _) in rows.items():
+        for coding, (b, rate, audio, _) in rows.items() if "codings" in sections else ():
             err = float(np.sum((audio - ref) ** 2))
             snr = 10 * np.log10(float(np.sum(ref ** 2)) / err) if err > 0 else float("inf")
             print(f"{coding:>8} {b / 1e6:9.2f} {b / ref_bytes:10.3f} {snr:8.1f} {rate:14.0f} {rate / ref_rate:10.2f}",
                   flush=True)
 
-        raw_per, raw_batched = raw_rates(ref_out)
-        ours_batched = batched_rate(ref_out)
-        print(f"\nreader vs raw h5py (float32, warm): per scene {ref_rate:.0f} vs {raw_per:.0f} scenes/s "
-              f"({ref_rate / raw_per:.2f}x); batched into a buffer {ours_batched:.0f} vs {raw_batched:.0f} "
-              f"scenes/s ({ours_batched / raw_batched:.2f}x)", flush=True)
+        if "reader" in sections:
+            raw_per, raw_batched = raw_rates(ref_out)
+            ours_batched = batched_rate(ref_out)
+            print(f"\nreader vs raw h5py (float32, warm): per scene {ref_rate:.0f} vs {raw_per:.0f} scenes/s "
+                  f"({ref_rate / raw_per:.2f}x); batched into a buffer {ours_batched:.0f} vs {raw_batched:.0f} "
+                  f"scenes/s ({ours_batched / raw_batched:.2f}x)", flush=True)
 
-        costs = scene_cost(corpus, root, min(args.scenes, 16))
-        base = costs["24 kHz mono"]
-        print(f"\n{'clips':>26} {'ms/scene':>9} {'x 24 kHz mono':>14}")
-        for name, t in costs.items():
-            print(f"{name:>26} {1e3 * t:9.1f} {t / base:14.2f}", flush=True)
+        for touch in ((False, True) if "loader" in sections else ()):
+            rates = loader_rates(ref_out, args.loader_repeats, touch)
+            if not rates:
+                print("\nDataLoader: skipped (no torch)")
+                break
+            base = rates[("item by item", 0)]
+            print(f"\nDataLoader, batches of 8, the loop {'sums the audio' if touch else 'counts scenes'}: scenes/s "
+                  f"(median of {args.loader_repeats}; load {os.getloadavg()[0]:.1f}); x item by item with 0 workers")
+            for way in ("item by item", "batched"):
+                print(f"  {way:>13}: " + "   ".join(f"{w} workers {rates[(way, w)]:5.0f} ({rates[(way, w)] / base:.2f}x)"
+                                                   for w in (0, 1, 2)), flush=True)
+            worst = min(rates[(way, w)] / rates[(way, 0)] for way in ("item by item", "batched") for w in (1, 2))
+            print(f"  with workers against without (the same way): at worst {worst:.2f}x", flush=True)
 
-        sizes = [int(x) for x in args.rss_sizes.split(",") if x]
+        if "write" in sections:
+            costs = write_costs()
+            base = costs["h5py audio[i] = x"]
+            print("\nwriting a scene's audio (4 x 240,000 float32), CPU ms per scene, median of 5")
+            for way, t in costs.items():
+                print(f"  {way:>20} {t:6.2f} ({t / base:.2f}x)", flush=True)
+
+        if "clips" in sections:
+            costs = scene_cost(corpus, root, min(args.scenes, 16))
+            base = costs["24 kHz mono"]
+            print(f"\n{'clips':>26} {'ms/scene':>9} {'x 24 kHz mono':>14}")
+            for name, t in costs.items():
+                print(f"{name:>26} {1e3 * t:9.1f} {t / base:14.2f}", flush=True)
+
+        sizes = [int(x) for x in args.rss_sizes.split(",") if x] if "rss" in sections else []
         if sizes:
             print(f"\n{'shard size':>10} {'peak RSS of the render worker (MB)':>36}")
             for size in sizes:

@@ -189,6 +189,7 @@ class CheckLevel(StrEnum):
     """``corpus.check``: how much of each clip is verified before planning."""
 
     FULL = "full"
+    DRAWN = "drawn"
     HEADER = "header"
     EXISTS = "exists"
     NONE = "none"

@@ -114,7 +114,8 @@ def test_generate_leaves_a_read_only_corpus_as_it_was(tmp_path, decoded, monkeyp
         before = _tree(corpus)
         code, out, err = tsel_cli.run("generate", "--preset", "demo", "--corpus-dir", corpus, "--split", "train=3",
                                       "--split", "val=0", "--split", "test=0", "--set", "audio.duration=2.0",
-                                      "--set", "output.shard_size=3", "--out", str(tmp_path / "d"), "--workers", "1")
+                                      "--set", "output.shard_size=3", "--set", 'corpus.check="full"',
+                                      "--out", str(tmp_path / "d"), "--workers", "1")
         assert code == 0, err
         assert _tree(corpus) == before
     finally:
@@ -129,7 +130,7 @@ def test_the_full_clip_check_prepares_the_clips_and_they_render_the_same_shards(
     src, want = decoded
     corpus = shutil.copytree(src, str(tmp_path / "corpus"))
     _forbid_decoding(monkeypatch)  # the check decodes each clip once, and scenes read what it prepared
-    generate(_config(corpus), str(tmp_path / "c"), workers=1, progress=False)
+    generate(_config(corpus, 'corpus.check="full"'), str(tmp_path / "c"), workers=1, progress=False)
     assert _shards(str(tmp_path / "c")) == want
     monkeypatch.undo()
     r = subprocess.run([sys.executable, "-m", "tsel_data.cli", "corpus", "prepare", "--preset", "demo",
@@ -187,7 +188,7 @@ def test_tsel_check_refuses_a_changed_prepared_clip(tmp_path, decoded, tsel_cli)
     corpus = shutil.copytree(src, str(tmp_path / "corpus"))
     cfg = _config(corpus)
     args = ["check", "--preset", "demo", "--corpus-dir", corpus, "--split", "train=3", "--split", "val=0",
-            "--split", "test=0", "--set", "audio.duration=2.0"]
+            "--split", "test=0", "--set", "audio.duration=2.0", "--set", 'corpus.check="full"']
     from tsel_data.plan.catalog import build_catalog, prepare_corpus
     clips = build_catalog(_config(corpus, "corpus.prepare_on_check=false"), corpus).clips
     victim = clips["train"][0]
@@ -256,8 +257,8 @@ def test_a_remembered_clip_check_still_prepares_the_clip(tmp_path, decoded):
     from tsel_data.plan.catalog import build_catalog, check_clips
 
     corpus = shutil.copytree(decoded[0], str(tmp_path / "corpus"))
-    cfg = _config(corpus)
-    clips = build_catalog(_config(corpus, "corpus.prepare_on_check=false"), corpus).clips["train"]
+    cfg = _config(corpus, 'corpus.check="full"')
+    clips = build_catalog(_config(corpus, "corpus.prepare_on_check=false", 'corpus.check="full"'), corpus).clips["train"]
     assert {audio.prepared_state(c.audio, 24000, 2.0, c.offset) for c in clips} == {"absent"}
     check_clips(clips, cfg)  # the verdicts are remembered from the check above; the prepared forms are made now
     assert {audio.prepared_state(c.audio, 24000, 2.0, c.offset) for c in clips} == {"ok"}
@@ -267,7 +268,7 @@ def test_planning_says_which_clips_it_keeps_prepared_and_how_not_to(demo_corpus,
     """corpus.check = "full" writes prepared clips itself: the user is told how many and
     where (files written for them), and how to turn it off."""
     common = ["--preset", "demo", "--corpus-dir", demo_corpus, "--split", "train=4", "--split", "val=0",
-              "--split", "test=0", "--set", "audio.duration=1.0"]
+              "--split", "test=0", "--set", "audio.duration=1.0", "--set", 'corpus.check="full"']
     code, out, err = tsel_cli.run("plan", *common, "--out", str(tmp_path / "a"))
     assert code == 0, err
     line = next(x for x in (out + err).splitlines() if x.startswith("train:"))  # the demo holds 16, 44.1 kHz and stereo clips

@@ -293,11 +293,13 @@ def _policy_corpus(tmp_path):
 
 
 def test_bad_clip_policy_skip_and_fail(tmp_path):
+    """corpus.check = "full": every clip checked before planning, every bad one listed
+    (tests/plan/test_drawn.py: the default, bad clips found where the plan draws them)."""
     import json
 
     corpus = _policy_corpus(tmp_path)
     base = ["--preset", "demo", "--corpus-dir", corpus, "--split", "train=4", "--split", "val=0", "--split", "test=0",
-            "--set", "audio.duration=1.0", "--set", "output.shard_size=2"]
+            "--set", "audio.duration=1.0", "--set", "output.shard_size=2", "--set", 'corpus.check="full"']
     skip, fail, chk_skip = run_all(
         ["generate", *base, "--out", str(tmp_path / "skip"), "--quiet", "--workers", "1"],
         ["generate", *base, "--set", 'on_bad_clip="fail"', "--out", str(tmp_path / "fail"), "--quiet"],

@@ -13,6 +13,7 @@ import soundfile as sf
 
 from tsel_data.cli import main
 from tsel_data.config import load_config
+from tsel_data.core.version import RENDERER, __version__
 from tsel_data.errors import TselError
 from tsel_data.export import export
 from tsel_data.job.pipeline import generate
@@ -65,6 +66,9 @@ def test_a_release_holds_recipes_and_checksums_and_no_audio(released):
         assert f in files, f
     r = load_release(rel)
     assert r.splits == ["train", "val", "test"] and len(r.checksums("train")) == 4 and not r.checksums("val")
+    assert r.doc["renderer"] == RENDERER and r.doc["version"] == __version__
+    with open(os.path.join(rel, "dataset.json"), encoding="utf-8") as f:
+        assert json.load(f)["renderer"] == RENDERER
     clips = r.clips()
     assert set(clips) == set(clip_uses(rel))  # every clip a recipe reads, and only those
     name = sorted(clips)[0]
@@ -119,6 +123,49 @@ def test_a_changed_and_a_missing_clip_are_reported_scene_by_scene(released, caps
     with pytest.raises(SystemExit) as ex:
         main(["check", out, "--release", released["rel"]])
     assert ex.value.code == 2 and "differs from the release (audio" in capsys.readouterr().err
+
+
+def test_a_release_of_another_renderer_rebuilds_naming_the_version_that_matches_it(released, capsys):
+    """A release made by tsel-data 0.1.9 (renderer 1: its release.json names none), one of
+    whose scenes that renderer made otherwise: the rebuild still renders every scene,
+    reports that one as differing because of the renderer, and names 0.1.9 as the version
+    that rebuilds the release bit for bit."""
+    rel = str(released["base"] / "rel-renderer-1")
+    shutil.copytree(released["rel"], rel)
+    with open(os.path.join(rel, "release.json"), encoding="utf-8") as f:
+        doc = json.load(f)
+    del doc["renderer"]
+    doc["version"] = "0.1.9"
+    with open(os.path.join(rel, "release.json"), "w", encoding="utf-8") as f:
+        json.dump(doc, f)
+    path = os.path.join(rel, "checksums", "train.jsonl")
+    with open(path, encoding="utf-8") as f:
+        lines = [json.loads(line) for line in f]
+    other = lines[1]["scene_id"]
+    lines[1]["audio"] = "0" * 64  # what renderer 1 made of it
+    with open(path, "w", encoding="utf-8") as f:
+        f.writelines(json.dumps(e) + "\n" for e in lines)
+    out = str(released["base"] / "rebuilt-renderer-1")
+    with pytest.raises(SystemExit) as ex:
+        main(["generate", "--from", rel, "--corpus-dir", copy_corpus(released, "copy-renderer"), "--out", out,
+              "--quiet"])
+    assert ex.value.code == 0
+    printed = capsys.readouterr().out
+    assert f"rendered by renderer 1 (tsel-data 0.1.9); this tsel-data ({__version__}) renders with renderer {RENDERER}" \
+        in printed and "tsel-data 0.1.9 rebuilds the release bit for bit" in printed
+    assert "train: 3 identical, 1 differs, 0 substituted, 0 not-buildable" in printed
+    with open(os.path.join(out, "rebuild.json"), encoding="utf-8") as f:
+        rep = json.load(f)
+    assert rep["renderer"] == {"release": 1, "this": RENDERER} and "0.1.9" in rep["note"]
+    status = {s["scene_id"]: s for s in rep["scenes"]}
+    assert status[other]["status"] == "differs" and status[other]["parts"] == ["audio"]
+    assert "no clip differs: the renderer does" in status[other]["why"] and "tsel-data 0.1.9" in status[other]["why"]
+    with open(os.path.join(out, "dataset.json"), encoding="utf-8") as f:
+        assert json.load(f)["renderer"] == RENDERER  # the rebuild is this renderer's
+    # the same renderer: no note
+    rep = rebuild(released["rel"], str(released["base"] / "rebuilt-same"), corpus_dir=released["corpus"],
+                  progress=False)
+    assert rep["note"] is None and rep["renderer"] == {"release": RENDERER, "this": RENDERER}
 
 
 def test_missing_clips_are_substituted_deterministically_when_asked(released):

@@ -74,3 +74,27 @@ def test_item_shapes_and_targets(source):
     k = item["class_index"].numpy()
     az = item["azimuth"][0].numpy()
     np.testing.assert_array_equal(k, np.floor(az + 0.5).astype(int) % 360)
+
+
+@pytest.mark.parametrize("workers", [0, 2])
+def test_a_batch_from_shards_is_its_items_read_in_one_pass(generated_dataset, workers):
+    """``__getitems__`` reads a batch's audio into one tensor (shared memory in a worker),
+    and collate hands that tensor on as it is: the same batches as item by item."""
+    _, out = generated_dataset("small")
+
+    class ItemByItem(Dataset):
+        __getitems__ = None  # the DataLoader then asks ds[i] for each index
+
+    def batches(ds, n):
+        loader = torch.utils.data.DataLoader(ds, batch_size=n, num_workers=workers, collate_fn=collate)
+        return list(loader)
+
+    for got, want in zip(batches(Dataset(out, "train"), 4), batches(ItemByItem(out, "train"), 4)):
+        assert got.keys() == want.keys() and got["scene_id"] == want["scene_id"]
+        for key, value in want.items():
+            if isinstance(value, torch.Tensor):
+                assert torch.equal(got[key].nan_to_num(7.0), value.nan_to_num(7.0)), key
+    items = Dataset(out, "train").__getitems__([3, 0, 5])
+    batch = collate(items)
+    assert batch["audio"].data_ptr() == items[0]["audio"].data_ptr()  # no copy
+    assert all(torch.equal(batch["audio"][b], Dataset(out, "train")[i]["audio"]) for b, i in enumerate([3, 0, 5]))

@@ -13,9 +13,12 @@ class RirSet:
     (knots of one moving source, asked for apart) the late part all points share, float32
     [C, L_tail] with L_tail >= L: point s's whole RIR is rirs[s] (zero-padded) + tail.
     delays: None, or (images in G groups, shoebox.py) float64 [S, G, C] samples: each
-    group's delay trajectory; rirs is then [S, G·C, L], group-major."""
+    group's delay trajectory; rirs is then [S, G·C, L], group-major. highpass: None, or
+    the second-order sections of the DC blocker the image parts in ``rirs`` still need,
+    applied once to what is rendered from them (shoebox.py ``image_highpass=False``)."""
 
     rirs: np.ndarray
     rt60_measured: float | None = None
     tail: np.ndarray | None = None
     delays: np.ndarray | None = None
+    highpass: np.ndarray | None = None

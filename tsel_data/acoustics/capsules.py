@@ -77,6 +77,17 @@ class Spaced:
                 w = w * (self.alpha[ch] + (1.0 - self.alpha[ch]) * (u @ self.axes[ch]))
             add_impulses(grid, ch, t * self.fs, w * fade_out(t, fade))
 
+    def impulses(self, pos: np.ndarray, amp: np.ndarray, fade) -> tuple[np.ndarray, np.ndarray]:
+        """What :meth:`add` gives each channel, for many images at once: delays (samples)
+        and weights, [N, C] each (acoustics/knots.py places them)."""
+        diff = pos[:, None, :] - self.mics[None]  # [N, C, 3]
+        r = np.sqrt(np.einsum("ncx,ncx->nc", diff, diff))
+        t = r / SOUND_SPEED
+        w = amp[:, None] / (4 * np.pi * r)
+        if not self.omni and np.any(self.alpha != 1.0):
+            w = w * (self.alpha + (1.0 - self.alpha) * np.einsum("ncx,cx->nc", diff, self.axes) / r)
+        return t * self.fs, w * fade_out(t, fade)
+
     def render(self, grid) -> np.ndarray:
         return grid_to_signal(grid)
 
@@ -129,6 +140,18 @@ class Ambisonic:
         w = amp / (4 * np.pi * r) * fade_out(t, fade)
         for ch in range(4):
             add_impulses(grid, ch, t * self.fs, w if ch == 0 else w * gains[:, ch])
+
+    def impulses(self, pos: np.ndarray, amp: np.ndarray, fade) -> tuple[np.ndarray, np.ndarray]:
+        """What :meth:`add` gives W, Y, Z, X for many images at once: delays (samples) and
+        weights, [N, 4] each."""
+        v = pos - self.centre
+        r = np.sqrt(np.einsum("nx,nx->n", v, v))
+        c, s = np.cos(np.radians(self.yaw)), np.sin(np.radians(self.yaw))
+        u = np.stack([(c * v[:, 0] + s * v[:, 1]) / r, (-s * v[:, 0] + c * v[:, 1]) / r, v[:, 2] / r], axis=-1)
+        gains = foa_gains_of(u)
+        t = r / SOUND_SPEED
+        w = (amp / (4 * np.pi * r) * fade_out(t, fade))[:, None] * gains
+        return np.repeat((t * self.fs)[:, None], 4, axis=1), w
 
     def render(self, grid) -> np.ndarray:
         return grid_to_signal(grid)

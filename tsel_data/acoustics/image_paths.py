@@ -35,11 +35,15 @@ _ITERATIONS = 12
 @dataclass(frozen=True)
 class ImageGroups:
     """keys: int64 [N] sorted image keys; group: [N] each key's group (0: the direct
-    path's); delays: float64 [K, G, C] samples, each group's warp per knot and channel."""
+    path's); delays: float64 [K, G, C] samples, each group's warp per knot and channel;
+    orders: int [N] each image's reflections; positions: float64 [N, K, 3] where each
+    image is at each knot (room frame)."""
 
     keys: np.ndarray
     group: np.ndarray
     delays: np.ndarray
+    orders: np.ndarray | None = None
+    positions: np.ndarray | None = None
 
     @property
     def n_groups(self) -> int:
@@ -90,7 +94,7 @@ def image_groups(dims, points: np.ndarray, mics: np.ndarray, centre, fs: int, ra
                 delays[:, g, c] = d[direct]
             elif members.any():
                 delays[:, g, c] = weight[members] @ d[members] / weight[members].sum()
-    return ImageGroups(keys, label, delays[:, :, np.ravel(chan)])
+    return ImageGroups(keys, label, delays[:, :, np.ravel(chan)], orders, pos)
 
 
 def _kmeans(x: np.ndarray, w: np.ndarray, k: int, pinned: int) -> np.ndarray:

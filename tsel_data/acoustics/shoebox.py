@@ -36,6 +36,7 @@ from .base import RirSet
 from .capsules import capsule_model
 from .highpass import butter2_highpass, sosfilt
 from .image_paths import image_groups, n_groups
+from .knots import batched, knot_parts
 from .ism import FD_TAPS, decay_model, fd_energy_gain, image_chunks, model_edc
 from .metrics import decay_time, t30
 
@@ -59,6 +60,7 @@ def shoebox_rirs(
     one_source: bool = False,
     tail_apart: bool = False,
     groups: int = 1,
+    image_highpass: bool = True,
 ) -> RirSet:
     """RIRs from room-frame ``points`` [S, 3] (m) to the channels of ``array``.
 
@@ -76,7 +78,11 @@ def shoebox_rirs(
     groups: with ``tail_apart``, split each knot's image-source part into at most this
     many groups of images that move alike (image_paths.py): ``rirs`` [S, G·C, L_img],
     group-major, and ``RirSet.delays`` [S, G, C] each group's delay trajectory, to align
-    the group by between knots.
+    the group by between knots. image_highpass: False (with ``tail_apart``): the
+    image parts without the DC blocker, which ``RirSet.highpass`` holds for the caller to
+    apply once to what it renders from them (it commutes with the time-varying render),
+    and only as long as the last image (no room for the blocker's response): knots with
+    groups are then simulated all at once (knots.py).
 
     Returns a :class:`RirSet` with float32 rirs [S, C, L] and ``rt60_measured`` = T30 of
     point 0, channel 0 (omni / W), or None when the response is too short to measure.
@@ -114,10 +120,11 @@ def shoebox_rirs(
     radius = c * t_img + aperture
     fade = (t_mix, FADE) if with_tail else None
 
-    # the image part only needs to be as long as the last image, plus the interpolator
-    # and 50 ms for the DC blocker's response (time constant ~8 ms) to die out
-    n_img = min(n_len, int(np.ceil((t_img + 0.05) * fs)) + FD_TAPS)
     apart = tail_apart and one_source and with_tail
+    filtered = image_highpass or not apart
+    # the image part only needs to be as long as the last image, plus the interpolator
+    # and (when filtered here) 50 ms for the DC blocker's response (time constant ~8 ms) to die out
+    n_img = min(n_len, int(np.ceil((t_img + (0.05 if filtered else 0.0)) * fs)) + FD_TAPS)
     C = model.n_channels
     # a group's delay per channel, from its capsule; channels mixed from others (or
     # coincident ones) all take the delay at the centre
@@ -126,12 +133,14 @@ def shoebox_rirs(
         len(points), C, n_img))) if apart and groups > 1 and len(points) > 1 else None
     G = grouped.n_groups if grouped else 1
     rirs = np.zeros((len(points), G * C, n_img if apart else n_len), dtype=np.float32)
-    for s, p in enumerate(points):
+    if grouped is not None and not filtered and batched(model):
+        rirs[:] = knot_parts(model, grouped, centre, radius, a, fade, n_img)
+    for s, p in enumerate(points if filtered or grouped is None or not batched(model) else ()):
         if grouped is None:
             grid = model.new_grid(n_img)
             for pos, order in image_chunks(dims, p, centre, radius, max_order):
                 model.add(grid, pos, np.exp(-a * order), fade)
-            rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), model.render(grid))
+            rirs[s, :, :n_img] = sosfilt(_dc_blocker(fs), model.render(grid)) if filtered else model.render(grid)
             continue
         chunks = [(pos, np.exp(-a * order), grouped.of(key)) for pos, order, key in
                   image_chunks(dims, p, centre, radius, max_order, keys=True)]
@@ -142,7 +151,7 @@ def shoebox_rirs(
                 mine = group == g
                 model.add(grid, pos[mine], amp[mine], fade)
             parts[g * C:(g + 1) * C] = model.render(grid)
-        rirs[s] = sosfilt(_dc_blocker(fs), parts)
+        rirs[s] = sosfilt(_dc_blocker(fs), parts) if filtered else parts
 
     tail, first = None, rirs[0, 0]
     if with_tail:
@@ -151,12 +160,15 @@ def shoebox_rirs(
         if apart:
             tail = late[0]
             first = tail[0].copy()  # point 0's whole response: the same float32 sums as rirs += late
-            first[:n_img] += rirs[0, ::C].sum(axis=0) if G > 1 else rirs[0, 0]
+            image = rirs[0, ::C].sum(axis=0) if G > 1 else rirs[0, 0]
+            if not filtered:  # measured as it sounds: blocked, with room for the blocker's response
+                image = sosfilt(_dc_blocker(fs), np.r_[image, np.zeros(min(n_len - n_img, int(0.05 * fs)))])
+            first[:len(image)] += image
         else:
             rirs += late
     measured = t30(first, fs) if max_order != 0 else float("nan")
     return RirSet(rirs, None if np.isnan(measured) else measured, tail,
-                  grouped.delays if grouped is not None else None)
+                  grouped.delays if grouped is not None else None, None if filtered else _dc_blocker(fs))
 
 
 # --- absorption ---------------------------------------------------------------------

@@ -10,7 +10,8 @@ RIR_METHODS = values(RirMethod)
 
 
 def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: int = 0,
-                  one_source: bool = False, tail_apart: bool = False, groups: int = 1) -> RirSet:
+                  one_source: bool = False, tail_apart: bool = False, groups: int = 1,
+                  image_highpass: bool = True) -> RirSet:
     """RIRs from room-frame points to an array's channels.
 
     Parameters
@@ -37,6 +38,9 @@ def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: in
     groups : int
         With ``tail_apart``: the image sources in up to this many groups that move alike,
         each with its delay trajectory (``RirSet.delays``; shoebox methods only).
+    image_highpass : bool
+        False (with ``tail_apart``, shoebox methods): the image parts without their DC
+        blocker, for the caller to apply once (``RirSet.highpass``).
 
     Returns
     -------
@@ -55,5 +59,5 @@ def simulate_rirs(room, array, points, fs: int, method: str = "hybrid", seed: in
         from .shoebox import shoebox_rirs
 
         return shoebox_rirs(room, array, points, fs, method=method, seed=seed, one_source=one_source,
-                            tail_apart=tail_apart, groups=groups)
+                            tail_apart=tail_apart, groups=groups, image_highpass=image_highpass)
     raise ValueError(f"unknown RIR method {method!r}; expected one of {RIR_METHODS}")

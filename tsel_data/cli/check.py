@@ -18,7 +18,7 @@ SHOW = 20  # problems printed per kind; the rest are counted (--json lists them 
 @click.option("--out", "out_dir", type=click.Path(file_okay=False),
               help="With a config: the output folder a run would use (checked for space, writability, an old plan).")
 @click.option("--workers", type=Bounded("workers", int), default=0, help="Processes (default: number of cores).")
-@click.option("--no-plan", is_flag=True, help="With a config: skip sampling every scene in memory.")
+@click.option("--no-plan", is_flag=True, help="With a config: skip sampling every scene in memory (with corpus.check = \"drawn\" every clip is then checked in full: no plan says which it draws).")
 @click.option("--no-audio", is_flag=True, help="With DIR: skip checking every audio sample is finite.")
 @click.option("--json", "as_json", is_flag=True, help="Print the full report as JSON.")
 @click.option("--release", "release_dir", type=click.Path(file_okay=False),

@@ -61,8 +61,10 @@ def prepare(preset, config_path, corpus_dir, splits, seed, bank, overrides, work
         refuse_inside(os.environ[CACHE_ENV], force, f"${CACHE_ENV} ", itself=True)
     cfg = load(preset, config_path, corpus_dir, splits, seed, bank, overrides)
     folder = resolve_corpus_dir(cfg, Layout(".").demo_corpus)
-    # the clips are prepared below, each counted; the check only says which are good
-    checking = replace(cfg, corpus=replace(cfg.corpus, prepare_on_check=False))
+    # the clips are prepared below, each counted; the check only says which are good (every
+    # clip decoded, since every clip is prepared: "drawn" would check headers only)
+    level = "full" if cfg.corpus.check == "drawn" else cfg.corpus.check
+    checking = replace(cfg, corpus=replace(cfg.corpus, prepare_on_check=False, check=level))
     catalog = build_catalog(checking, folder, workers=worker_count(workers))
     with tqdm(total=sum(len(c) for c in catalog.clips.values()), unit="clip", desc="prepare", disable=quiet) as bar:
         counts = prepare_corpus(cfg, catalog.clips, worker_count(workers), progress=lambda: bar.update())

@@ -60,6 +60,8 @@ def _rebuild(release, out_dir, corpus_dir, bank, missing, min_scenes, workers, q
                         "--seed, --set, --manifest and --grow")
     rep = rebuild(release, out_dir, corpus_dir, bank, missing, workers=worker_count(workers), progress=not quiet,
                   force=force, executor=executor, scheduler=scheduler, min_scenes=min_scenes)
+    if rep.get("note"):
+        click.echo(say(rep["note"]))
     c = rep["clips"]
     moved = next(iter(rep["found"].items()), None)
     click.echo("clips: " + ", ".join(f"{v:,} {k}" for k, v in c.items())

@@ -63,14 +63,17 @@ class CorpusConfig:
                                      "`{youtube_id}_{start_time}.wav`, `{audiocap_id}.wav` and the same in `.flac`; "
                                      "fields `{youtube_id}`, `{audiocap_id}`, `{start_time}`), e.g. "
                                      "`\"Y{youtube_id}.wav\"`", many=True)
-    check: str = option("full", "how much each clip is checked before planning: `full` (decode: catches NaN/Inf, "
-                                "and silence in the `audio.duration` seconds a scene uses), `header`, `exists`, "
-                                "`none` (trust the manifest; a silent source is then an error at render time)",
-                        choices=CheckLevel)
-    prepare_on_check: bool = option(True, "with `check = \"full\"`, write each clip's prepared form (`tsel corpus "
-                                          "prepare`) from the same decode, for every clip scenes would resample or "
-                                          "mix down: real 44.1 kHz stereo corpora then render as fast as prepared "
-                                          "ones. They go to `$TSEL_CLIP_CACHE`, else the per-user cache "
+    check: str = option("drawn", "how much each clip is checked: `drawn` (every header before planning, then the "
+                                 "clips the plan draws decoded as `full` does; a scene that drew a bad one is planned "
+                                 "again without it: docs/reliability.md), `full` (every clip decoded before planning: "
+                                 "catches NaN/Inf, and silence in the `audio.duration` seconds a scene uses), "
+                                 "`header`, `exists`, `none` (trust the manifest; a silent source is then an error at "
+                                 "render time)", choices=CheckLevel, former="full")
+    prepare_on_check: bool = option(True, "write a clip's prepared form (`tsel corpus prepare`) from the decode of its "
+                                          "full check, when scenes would resample or mix it down: with `check = "
+                                          "\"drawn\"` for the clips the plan uses twice or more (where it pays: "
+                                          "benchmarks/bench_prepared.py), with `\"full\"` for every clip. They go "
+                                          "to `$TSEL_CLIP_CACHE`, else the per-user cache "
                                           "(`~/.cache/tsel-data/clips`), never into the corpus (`tsel check` never "
                                           "writes them)", new=True)
     fingerprint: str = option("stat", "what a shard's seal records of each clip and bank file it read, so "
@@ -221,7 +224,7 @@ class SceneConfig:
     margin_solo: float = option(DEFAULT_MARGINS["margin_solo"], "heard at T: the target is the only active source on "
                                 "every label frame within this window centred on T", unit="s", gt=0.0, le=600.0, new=True)
     motion: str = option("static", "`static`, `moving` or `mixed`. In simulated rooms a moving source follows "
-                                   "`path`, with an RIR at least every 100 ms, every 4° and every 6 cm; "
+                                   "`path`, with an RIR at least every 100 ms, every 4° and every 6 cm (4.5 cm on arcs); "
                                    "with a bank it walks a bank trajectory, starting at a random point in a random "
                                    "direction",
                          choices=Motion)

@@ -16,6 +16,13 @@ def jsonable(x):
     become lists, numpy scalars Python numbers, non-finite floats ``None`` (JSON has no
     NaN); dict keys keep their order.
     """
+    t = type(x)  # plain values first: a scene's record is mostly lists of label numbers
+    if t is float:
+        return x if math.isfinite(x) else None
+    if t is str or t is int or t is bool or x is None:
+        return x
+    if t is list:
+        return [jsonable(v) for v in x]
     if hasattr(x, "to_json"):
         return jsonable(x.to_json())
     if is_dataclass(x) and not isinstance(x, type):

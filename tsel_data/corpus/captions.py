@@ -295,7 +295,7 @@ class CaptionIndex:
         return np.sort(terms[np.argsort(lens, kind="stable")[: len(terms) - drop]])
 
     def sample(self, rng: np.random.Generator, cap: int, lo: float, hi: float, allowed, batch: int = 256,
-               tries: int = 3) -> int | None:
+               tries: int = 3, excluded=None) -> int | None:
         """A clip whose similarity to caption ``cap`` lies in [lo, hi] and that
         ``allowed(clips) -> bool mask`` accepts, drawn from ``rng``; None if the split has none.
 
@@ -306,6 +306,9 @@ class CaptionIndex:
         clips. The first qualifying candidate of a batch is taken. After ``tries`` batches
         without one, every possible candidate is scored and one of the qualifying clips is
         drawn uniformly, so a rare band is found when it exists and absence is certain.
+        ``excluded(clips) -> bool mask``: clips never taken (a full check found them bad,
+        plan/drawn.py), passed over as if drawn and turned down, so that a draw that
+        lands on none of them is the draw without them.
         """
         q = self._query(cap)
         lexical = self.measure != "embeddings" and lo > 0
@@ -333,6 +336,8 @@ class CaptionIndex:
             ok = np.flatnonzero((s >= lo) & (s <= hi))
             if len(ok):
                 ok = ok[allowed(clips[ok])]
+                if len(ok) and excluded is not None:
+                    ok = ok[~excluded(clips[ok])]
                 if len(ok):
                     return int(clips[ok[0]])
         if lexical:  # every caption holding a needed term, once
@@ -342,4 +347,9 @@ class CaptionIndex:
         s = self.clip_sims(cap, every, q)
         ok = every[(s >= lo) & (s <= hi)]
         ok = ok[allowed(ok)] if len(ok) else ok
-        return int(ok[rng.integers(len(ok))]) if len(ok) else None
+        while len(ok):
+            j = int(ok[rng.integers(len(ok))])
+            if excluded is None or not excluded(np.array([j]))[0]:
+                return j
+            ok = ok[ok != j]
+        return None

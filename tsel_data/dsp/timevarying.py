@@ -164,7 +164,7 @@ def _overlap_add_into(y: np.ndarray, B: int, n_out: int, out: np.ndarray) -> np.
     return out
 
 
-def render_moving(signal, rirs, times, fs: float, *, delays="auto") -> np.ndarray:
+def render_moving(signal, rirs, times, fs: float, *, delays="auto", fold: int = 1) -> np.ndarray:
     """Render a moving source: float32 [C, T + L - 1] (rows may be strided, as in
     :func:`render_static`).
 
@@ -179,6 +179,12 @@ def render_moving(signal, rirs, times, fs: float, *, delays="auto") -> np.ndarra
     the direct path moves continuously. An array of direct-path delays in samples, [K]
     (one for all channels) or [K, C]: these instead of the estimate. ``None``: the plain
     crossfade of the knot RIRs (the delay-unaware model, for comparisons).
+
+    fold: the RIRs' channels are ``fold`` groups of C / fold (group-major; image groups of
+    a simulated source, acoustics/image_paths.py), each with its own warp from its own
+    ``delays`` columns (as if rendered alone), summed into C / fold output channels in the
+    frequency domain: one render instead of ``fold``, whose inverse transforms, overlap-add
+    and input filters are shared.
     """
     x = np.asarray(signal, dtype=np.float32).reshape(-1)
     tau = np.asarray(times, dtype=np.float64).reshape(-1)
@@ -195,16 +201,29 @@ def render_moving(signal, rirs, times, fs: float, *, delays="auto") -> np.ndarra
     if len(tau) > 1 and np.any(np.diff(tau) <= 0):
         raise ValueError("knot times must be strictly increasing")
     K, T = len(tau), len(x)
+    if shape[1] % fold:
+        raise ValueError(f"{shape[1]} channels do not fold into {fold} groups")
     if K == 1 or T == 0:
-        return render_static(x, h[0])
+        y = render_static(x, h[0])
+        return y if fold == 1 else y.reshape(fold, shape[1] // fold, -1).sum(axis=0)
     p = tau * fs
     # Interval k = samples [e_k, e_{k+1}): from knot k (inclusive) to knot k+1; interval 0
     # also holds the samples before knot 0, interval K-1 those after the last knot.
     e = np.empty(K + 1, dtype=np.int64)
     e[0], e[K] = 0, T
     e[1:K] = np.clip(np.ceil(p[1:]), 0, T)
-    groups = _delay_groups(_steps_from(delays, h, p), shape[1])
-    return _partitioned(x, p, e, h, groups)
+    steps = _steps_from(delays, h, p)
+    if fold == 1:
+        groups = _delay_groups(steps, shape[1])
+    else:  # each fold's channels grouped as a render of its own would group them
+        c = shape[1] // fold
+        groups = []
+        for f in range(fold):
+            mine = _delay_groups(None if steps is None else steps[:, f * c:(f + 1) * c], c)
+            groups += [(chans + f * c, sig) for chans, sig in mine] if mine else [(np.arange(c) + f * c, None)]
+        if all(sig is None for _, sig in groups):
+            groups = None
+    return _partitioned(x, p, e, h, groups, fold)
 
 
 def _grid_origin(e: np.ndarray, T: int, B: int) -> int:
@@ -238,16 +257,18 @@ def _sizes(B: int, L: int) -> tuple[int, int, int]:
     return B, -(-L // B), fft.good_size(B + min(B, L) - 1)
 
 
-def _plan(e: np.ndarray, C: int, L: int, T: int) -> tuple[int, int, int]:
+def _plan(e: np.ndarray, C: int, L: int, T: int, streams: int = 1, out: int | None = None) -> tuple[int, int, int]:
     """(B, P, N): block size B (also the RIR partition length), P = ⌈L/B⌉ partitions,
     N-point FFTs; the candidate with the least estimated time.
 
-    Estimate (ns): FFT rows (RIR partitions, input pieces, inverse transforms at 1.2x)
-    times :func:`_fft_ns`, plus 0.9 ns per complex multiply-add, plus Python overhead
-    per knot and per block; the number of (block, knot) pieces is counted on the real
-    grid. Candidates: about ½–3 knot intervals, L / P for P = 1..3, and plain overlap-add
+    Estimate (ns): FFT rows (RIR partitions, input pieces of each of ``streams``,
+    inverse transforms of the ``out`` output channels (default C) at 1.2x) times
+    :func:`_fft_ns`, plus 0.9 ns per complex multiply-add, plus Python overhead per knot
+    and per block; the number of (block, knot) pieces is counted on the real grid.
+    Candidates: about ½–3 knot intervals, L / P for P = 1..3, and plain overlap-add
     (P = 1) at power-of-two FFT sizes.
     """
+    out = C if out is None else out
     K = len(e) - 1
     la = np.diff(e)
     inner = la[1 : K - 1][la[1 : K - 1] > 0]
@@ -262,7 +283,7 @@ def _plan(e: np.ndarray, C: int, L: int, T: int) -> tuple[int, int, int]:
         if N > max(1 << 16, 2 * L):  # out of cache: slower than the model says
             continue
         nb, pairs = _pairs_per_block(e, T, B)
-        rows = C * P * used + pairs + 1.2 * C * (nb + P - 1)
+        rows = C * P * used + streams * pairs + 1.2 * out * (nb + P - 1)
         cost = rows * _fft_ns(N) + 0.9 * pairs * P * C * (N // 2 + 1) + 10_000 * used + 5_000 * nb
         if best is None or cost < best[0]:
             best = (cost, B, P, N)
@@ -288,9 +309,10 @@ def _crossfade(x: np.ndarray, p: np.ndarray, e: np.ndarray) -> tuple[np.ndarray,
     return rise, x - rise
 
 
-def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h, groups=None) -> np.ndarray:
+def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h, groups=None, fold: int = 1) -> np.ndarray:
     """Σ_k ((w_k·x) * h_k), or with ``groups`` the delay-aware model (module docstring):
-    float32 [C, T + L - 1].
+    float32 [C, T + L - 1]; with ``fold``, the C channels summed in ``fold`` groups of C / fold
+    (before the inverse transforms): [C / fold, T + L - 1].
 
     x: float32 [T]. p: float64 [K] knot positions (samples). e: int [K + 1] interval
     starts (e_0 = 0, e_K = T). h: K RIRs [C, L] (an array [K, C, L] or a sequence).
@@ -315,7 +337,7 @@ def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h, groups=None) ->
         M = Mr + FD_HALF
     else:
         Mr = M = 0
-    B, P, N = _plan(e, C, L, T)
+    B, P, N = _plan(e, C, L, T, len(streams), C // fold) if fold > 1 else _plan(e, C, L, T)
     if M:
         N = fft.good_size(B + min(B, L) - 1 + 2 * M)
     o = _grid_origin(e, T, B)
@@ -339,14 +361,16 @@ def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h, groups=None) ->
     flat = np.empty(rows * B, dtype=np.float32)
     X = [np.empty((rows, F), dtype=np.complex64) for _ in streams]
     prod = np.empty((P, C, F), dtype=np.complex64)
+    Co = C // fold  # output channels
+    folded = np.empty((P, Co, F), dtype=np.complex64) if fold > 1 else prod
     xc = np.empty((C, F), dtype=np.complex64)
     # Output blocks, and the spectra of the unfinished ones: acc[i] is block a0 + i.
-    out = np.zeros((C, nb + P - 1 + q, B), dtype=np.float32)
+    out = np.zeros((Co, nb + P - 1 + q, B), dtype=np.float32)
     ends = np.maximum.reduceat(b0 + nk, starts)
     # acc holds the blocks from the current group's first one to the furthest any knot so
     # far reaches (an earlier knot may reach further than the current ones)
-    acc = np.zeros((int(max(np.maximum.accumulate(ends) - b0[starts])) + P, C, F), dtype=np.complex64)
-    y = fft.empty((len(acc), C, N))
+    acc = np.zeros((int(max(np.maximum.accumulate(ends) - b0[starts])) + P, Co, F), dtype=np.complex64)
+    y = fft.empty((len(acc), Co, N))
     a0, used = 0, 0
     width = B + 2 * M
 
@@ -409,7 +433,9 @@ def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h, groups=None) ->
                     for s, Xs in zip(streams, X):
                         xc[s.chans] = Xs[r]
                 np.multiply(xc, H[t], out=prod)
-                acc[m + u : m + u + P] += prod
+                if fold > 1:
+                    np.add.reduce(prod.reshape(P, fold, Co, F), axis=1, out=folded)
+                acc[m + u : m + u + P] += folded
                 r += 1
         used = max(used, int(ends[gi]) + P - 1 - a0)
         # Blocks before the next group's first block are complete: inverse transform
@@ -417,7 +443,7 @@ def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h, groups=None) ->
         done = (int(b0[i + g]) if i + g < len(live) else nb + P - 1) - a0
         if done > 0:
             fft.irfft(acc[:done], N, out=y[:done], overwrite=True)
-            yt = y[:done].transpose(1, 0, 2)  # [C, done, N]
+            yt = y[:done].transpose(1, 0, 2)  # [Co, done, N]
             for u in range(q):
                 w = min(B, N - u * B)
                 out[:, a0 + u : a0 + u + done, :w] += yt[:, :, u * B : u * B + w]
@@ -425,7 +451,7 @@ def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h, groups=None) ->
             acc[:keep] = acc[done : done + keep]
             acc[keep:used] = 0
             a0, used = a0 + done, keep
-    return out.reshape(C, -1)[:, M - o : M - o + T + L - 1]
+    return out.reshape(Co, -1)[:, M - o : M - o + T + L - 1]
 
 
 class _Stream:

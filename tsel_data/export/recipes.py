@@ -11,7 +11,7 @@ import os
 from collections import defaultdict
 
 from ..core.digest import sha256_file
-from ..core.version import __version__
+from ..core.version import RENDERER, __version__
 from ..errors import DatasetError
 from ..scene.recipe import corpus_files
 from ..store.layout import CONFIG_FILE, DATASET_FILE, Layout
@@ -103,7 +103,7 @@ class RecipesWriter(Writer):
             with open(os.path.join(job.root, rel), encoding="utf-8") as f:
                 files.append(job.write_text(rel, f.read()))
         doc = {"kind": RELEASE_KIND, "release_version": RELEASE_VERSION, "tool": "tsel-data", "version": __version__,
-               "name": job.doc.config.get("name"), "seed": job.doc.raw.get("seed"),
+               "renderer": RENDERER, "name": job.doc.config.get("name"), "seed": job.doc.raw.get("seed"),
                "config_sha256": config_hash(job.doc.config), "format": job.doc.format,
                "splits": {s: {"scenes": job.summaries[s]["scenes"], "recipes": plan_file(s),
                               "checksums": checksums_file(s)} for s in splits},

@@ -28,6 +28,7 @@ import numpy as np
 from ..config import Config, load_config
 from ..config.receiver import array_pose
 from ..errors import ConfigError
+from ..plan.drawn import exclude_every_bad_clip
 from ..plan.sampler import prepare_views, plan_scene
 from ..render.mix import render_scene
 from ..scene.recipe import SceneRecipe
@@ -78,6 +79,8 @@ class SceneSource:
             raise ConfigError(f"split {split!r} makes no scenes in config {cfg.name}; splits with scenes: {have}")
         layout = Layout(home or tempfile.mkdtemp(prefix="tsel-scenes-"))
         _, views = prepare_views(cfg, layout, workers)
+        if cfg.corpus.check == "drawn":  # any scene may be asked for: every clip checked, as a drawn plan ends up
+            exclude_every_bad_clip(cfg, views[split], workers)
         self.cfg, self.split, self.view = cfg, split, views[split]
         self.home = layout.root
         self.fs, self.label_hop, self.format = cfg.audio.fs, cfg.audio.label_hop, cfg.scene.format

@@ -25,7 +25,8 @@ from ..config import Config, Difference, config_differences
 from ..config.receiver import array_poses
 from ..core.atomic import write_error, write_json, write_lines
 from ..errors import ConfigError, DatasetError, TselError
-from ..plan.catalog import reuse_stop, write_bad_clips, write_missing_clips
+from ..plan.catalog import prepared_line, reuse_stop, write_bad_clips, write_missing_clips
+from ..plan.drawn import plan_drawn, scan_with_drawn
 from ..plan.recorded import plan_recorded, recorded_corpus
 from ..plan.sampler import plan_split_json, prepare_views
 from ..scene.recipe import plan_roots
@@ -253,10 +254,30 @@ def _plan_locked(cfg: Config, layout: Layout, workers: int, resume: bool, grow: 
     if cfg.recorded.on:
         return _plan_recorded(cfg, layout, report)
     catalog, views = _catalog(cfg, layout, workers, progress, report, allow_reuse)
-    plans = {split: plan_split_json(cfg, split, views[split], workers, progress=progress) if sp.count else []
-             for split, sp in cfg.splits.items()}
+    plans = _plans(cfg, catalog, views, workers, progress, report)
     _write_plan(cfg, layout, catalog, plans)
     return {split: len(lines) for split, lines in plans.items()}
+
+
+def _plans(cfg: Config, catalog, views, workers: int, progress, report) -> dict[str, list[str]]:
+    """The recipe lines of every split in ``views`` (others: none); with ``corpus.check = "drawn"``, the clips they draw
+    checked in full and the scenes that drew a bad one planned again (plan/drawn.py): the
+    bad clips go to the catalog (``bad_clips.jsonl``), or stop the run under
+    ``on_bad_clip = "fail"``."""
+    if cfg.corpus.check != "drawn":
+        return {split: plan_split_json(cfg, split, views[split], workers, progress=progress)
+                if split in views and sp.count else [] for split, sp in cfg.splits.items()}
+    fail = cfg.on_bad_clip == "fail"
+    plans, found = plan_drawn(cfg, views, workers, progress, stop_at_bad=fail)
+    scan_with_drawn(catalog, found)
+    if fail and found.bad:
+        first, more = found.bad[0].error(), len(found.bad) - 1
+        raise type(first)(f"{first}" + (f" (and {more} more problem(s); run `tsel check` to list them)" if more else ""))
+    if report:
+        report(found.line())
+        if found.prepared:
+            report(prepared_line())
+    return plans
 
 
 def _catalog(cfg: Config, layout: Layout, workers: int, progress, report, allow_reuse: bool = False):
@@ -364,6 +385,7 @@ def _grow(cfg: Config, layout: Layout, grown: dict[str, tuple[int, int]], worker
     (dataset.json removed), remove each grown split's last shard if it was partial (it
     is rendered again, fuller), then write the longer plan."""
     catalog, views = _catalog(cfg, layout, workers, progress, report, allow_reuse)
+    fresh = _plans(cfg, catalog, {s: v for s, v in views.items() if s in grown}, workers, progress, report)
     plans = {}
     for split, sp in cfg.splits.items():
         before = read_plan_lines(layout, split)
@@ -371,7 +393,7 @@ def _grow(cfg: Config, layout: Layout, grown: dict[str, tuple[int, int]], worker
             plans[split] = before
             continue
         planned = grown[split][0]
-        lines = plan_split_json(cfg, split, views[split], workers, progress=progress) if sp.count else []
+        lines = fresh[split]
         changed = next((i for i in range(planned) if i >= len(before) or lines[i] != before[i]), None)
         if changed is not None:
             raise DatasetError(f"{layout.root}: scene {split}-{changed:06d} would now be planned differently (the "

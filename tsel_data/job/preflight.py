@@ -20,11 +20,13 @@ import tempfile
 from dataclasses import replace
 
 from ..banks.scenes import bank_problems
+from ..choices import CheckLevel
 from ..config import Config, config_problems, geometry_problems, rooms_without_bank
 from ..config.receiver import array_poses, hrtf_problem
 from ..core.report import CheckReport
 from ..errors import DatasetError, TselError
 from ..plan.catalog import BUILTIN_DEMO, resolve_corpus_dir, reuse_stop, scan_catalog
+from ..plan.drawn import plan_drawn
 from ..plan.recorded import plan_recorded, recorded_corpus
 from ..plan.sampler import ambience_problems, bank_request, catalog_views, plan_split_json
 from ..store.layout import Layout
@@ -43,7 +45,8 @@ def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan
     workers : int
         Processes for clip checks and planning.
     plan : bool
-        Also sample every scene in memory.
+        Also sample every scene in memory. Without it, ``corpus.check = "drawn"`` checks
+        every clip in full: no plan says which it draws.
 
     Returns
     -------
@@ -69,6 +72,9 @@ def check_config(cfg: Config, out_dir: str | None = None, workers: int = 1, plan
         rep.error(e)
     if out_dir:
         _check_out_dir(cfg, out_dir, rep)
+    if not plan and cfg.corpus.check == CheckLevel.DRAWN:
+        # no plan says which clips it would draw: any may be, so each is checked as drawn ones are
+        cfg = replace(cfg, corpus=replace(cfg.corpus, check=CheckLevel.FULL))
     with tempfile.TemporaryDirectory(prefix="tsel-check-") as scratch:
         catalogs = _check_corpus(cfg, out_dir, Layout(scratch), workers, rep)
         if plan and catalogs and not rep.errors:
@@ -173,10 +179,7 @@ def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: Chec
     scan = scan_catalog(looking, corpus_dir, workers, progress=None)  # bars only on a terminal
     for e in scan.problems:
         rep.error(e)
-    for b in scan.bad:
-        rep.bad_clips.append(b.to_json())
-        if cfg.on_bad_clip == "skip":
-            rep.warnings.append(f"{b.origin}: clip {b.clip_id}: {b.problem} (skipped: on_bad_clip = \"skip\")")
+    _report_bad(cfg, scan.bad, rep)
     for split, clips in scan.missing.items():
         if clips and cfg.on_bad_clip == "skip":
             # a partial download is normal: one line per split, not one per absent file
@@ -197,6 +200,17 @@ def _check_corpus(cfg: Config, out_dir, scratch: Layout, workers: int, rep: Chec
     return scan.clips
 
 
+def _report_bad(cfg: Config, bad: list, rep: CheckReport, errors: bool = False) -> None:
+    """Bad clips in the report: listed, and a warning each under ``on_bad_clip = "skip"``
+    (under ``"fail"`` they are errors: the scan's problems, or here with ``errors``)."""
+    for b in bad:
+        rep.bad_clips.append(b.to_json())
+        if cfg.on_bad_clip == "fail" and errors:
+            rep.error(b.error())
+        elif cfg.on_bad_clip == "skip":
+            rep.warnings.append(f"{b.origin}: clip {b.clip_id}: {b.problem} (skipped: on_bad_clip = \"skip\")")
+
+
 def _check_plan(cfg: Config, catalogs: dict, workers: int, rep: CheckReport, out_dir, scratch: Layout) -> None:
     """Sample every scene in memory (what `tsel plan` would write), collecting failures;
     the views are made as `tsel generate` makes them (plan.sampler.catalog_views)."""
@@ -204,7 +218,14 @@ def _check_plan(cfg: Config, catalogs: dict, workers: int, rep: CheckReport, out
     for split, clips in catalogs.items():
         try:
             view = catalog_views(cfg, {split: clips}, home)[split]
-            lines = plan_split_json(cfg, split, view, workers, progress=None)  # a bar only on a terminal
+            if cfg.corpus.check == "drawn":  # the clips the plan draws, checked as the job checks them
+                plans, found = plan_drawn(cfg, {split: view}, workers, progress=None, prepare=False)
+                lines = plans[split]
+                _report_bad(cfg, found.bad, rep, errors=True)
+                rep.facts["splits"][split]["bad"] = rep.facts["splits"][split].get("bad", 0) + len(found.bad)
+                rep.facts["splits"][split]["checked_in_full"] = found.checked
+            else:
+                lines = plan_split_json(cfg, split, view, workers, progress=None)  # a bar only on a terminal
         except TselError as e:
             rep.error(e)
             continue

@@ -6,7 +6,9 @@ gets one status, held against the release's checksums (store/release.py):
 
 - ``identical``: audio, labels and record are the release's, bit for bit;
 - ``differs``: they are not; ``why`` names the scene's clips whose bytes differ from the
-  release's (or says none does: the renderer or its libraries differ);
+  release's (or says none does: the renderer or its libraries differ; a release rendered
+  by another renderer than this tsel-data's, core/version.py, is named in ``renderer``
+  and ``note``, with the tsel-data version that rebuilds it bit for bit);
 - ``not-buildable``: a clip is missing (or no longer readable), and the policy is
   ``skip``: the scene is left out of the dataset;
 - ``substituted``: a clip was missing and the policy is ``substitute``: a clip of the
@@ -29,7 +31,7 @@ from ..banks.scenes import resolve_bank
 from ..choices import MissingClipPolicy, values
 from ..config import parse_config
 from ..core.atomic import write_json, write_lines
-from ..core.version import __version__, is_newer
+from ..core.version import RENDERER, __version__, is_newer, renderer_of
 from ..corpus.audio import check_clip
 from ..errors import ConfigError, DatasetError, TselError
 from ..plan.catalog import BUILTIN_DEMO, resolve_corpus_dir
@@ -159,6 +161,7 @@ def _report(rel: Release, release_dir: str, out_dir: str, missing: str, found: d
     return {"tool": "tsel-data", "version": __version__,
             "release": os.path.relpath(os.path.realpath(release_dir), os.path.realpath(out_dir)).replace(os.sep, "/"),
             "release_version": rel.doc.get("version"), "missing": missing,
+            "renderer": {"release": renderer_of(rel.doc), "this": RENDERER}, "note": renderer_note(rel),
             "splits": {s: {k: sum(o.split == s and o.status == k for o in outcomes) for k in STATUSES}
                        for s in rel.splits},
             "clips": {"at their names": sum(bool(f.path) and f.how == "name" for f in found.values()),
@@ -167,6 +170,18 @@ def _report(rel: Release, release_dir: str, out_dir: str, missing: str, found: d
                       "missing": sum(f.path is None for f in found.values())},
             "found": moved,
             "scenes": [asdict(o) for o in outcomes]}
+
+
+def renderer_note(rel: Release) -> str | None:
+    """One line when the release was rendered by another renderer than this tsel-data's
+    (None when by the same): scenes whose bytes changed between them will differ, and the
+    version that made the release rebuilds it bit for bit."""
+    theirs, made = renderer_of(rel.doc), rel.doc.get("version") or "unknown"
+    if theirs == RENDERER:
+        return None
+    return (f"the release was rendered by renderer {theirs} (tsel-data {made}); this tsel-data ({__version__}) "
+            f"renders with renderer {RENDERER}, so scenes whose bytes changed between them are reported as differing; "
+            f"tsel-data {made} rebuilds the release bit for bit (pip install 'tsel-data=={made}')")
 
 
 def _config_here(rel: Release, layout: Layout, corpus_dir: str | None, bank: str | None) -> dict:
@@ -318,6 +333,10 @@ def _compare(rel: Release, out_dir: str, outcomes: list, clips: ClipState) -> No
                 # an edited recipe was refused on load by the plan's seal; a release without one cannot tell
                 edited = "" if isinstance(rel.plan_doc.get("seal"), dict) else \
                     "its recipe was edited (the release has no plan seal to tell), or "
+                theirs = renderer_of(rel.doc)
                 o.why = ("; ".join(f"clip {n} differs from the release's (sha256)" for n in changed) if changed else
+                         f"no clip differs: {edited}the renderer does (release rendered by renderer {theirs}, this is "
+                         f"renderer {RENDERER}: tsel-data {rel.doc.get('version')} rebuilds it bit for bit)"
+                         if theirs != RENDERER else
                          f"no clip differs: {edited}the renderer or its libraries do (release made by tsel-data "
                          f"{rel.doc.get('version')}, this is {__version__})")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 from tqdm import tqdm
@@ -47,9 +48,6 @@ class Plan:
     doc: dict
     _parts: dict[str, "PlanPart"] = field(default_factory=dict, repr=False)
     _hashed: set = field(default_factory=set, repr=False)  # splits whose plan file matched its seal by sha256
-    # (split, shard) written by this plan's own render stage: their writers hashed them as
-    # they sealed them, so finalize checks their size and time against the seal, not their bytes
-    _written: set = field(default_factory=set, repr=False)
 
     @property
     def out_dir(self) -> str:
@@ -297,8 +295,6 @@ def _render_todo(plan: Plan, tasks, todo, workers, progress, executor, scheduler
                     bar.update(n)
                     if problem:
                         failed.append(f"{t.files[0]}: {problem}")
-                    else:
-                        plan._written.add((t.split, t.shard))
     if failed:
         raise DatasetError(f"{len(failed)} shard(s) could not be rendered (the others were), e.g. {failed[0]}; fix the "
                            f"input and rerun with --resume (shards that read a changed clip are rendered again)")
@@ -342,9 +338,9 @@ def finalize(plan: Plan | str, corpus_dir: str | None = None, bank: str | None =
     with DatasetLock(layout, exclusive=True, what="finalize it"):
         entries: dict[str, list] = {split: [] for split in plan.cfg.splits}  # config order
         missing, bad = [], []
-        for task, recipes, st in zip(plan.tasks, shard_recipes, stats):
-            state, why = shard_state(layout, task.split, task.shard, expected_fingerprint(recipes, plan.roots, st),
-                                     deep=(task.split, task.shard) not in plan._written)
+        prints = [expected_fingerprint(recipes, plan.roots, st) for recipes, st in zip(shard_recipes, stats)]
+        states = shard_states(layout, plan.tasks, prints)
+        for task, recipes, (state, why) in zip(plan.tasks, shard_recipes, states):
             if state == "missing":
                 missing.append(task.files[0])
                 continue
@@ -371,6 +367,21 @@ def finalize(plan: Plan | str, corpus_dir: str | None = None, bank: str | None =
             doc["recorded"] = plan.doc["recorded"]
         write_json(layout.dataset_file, doc)
         return doc
+
+
+def shard_states(layout: Layout, tasks: list[ShardTask], prints: list[str]) -> list[tuple[str, str]]:
+    """:func:`~tsel_data.store.integrity.shard_state` of every shard: a shard whose files
+    keep the size and modification time of its seal is taken as sealed (its writer hashed
+    it as it sealed it), so only changed files are hashed, on threads (hashlib and file
+    reads release the GIL): a finalize of 1,000 hours of shards is no serial re-hash."""
+    def one(job):
+        task, fingerprint = job
+        return shard_state(layout, task.split, task.shard, fingerprint)
+
+    if len(tasks) < 2:
+        return [one(j) for j in zip(tasks, prints)]
+    with ThreadPoolExecutor(max_workers=min(len(tasks), os.cpu_count() or 1)) as pool:
+        return list(pool.map(one, zip(tasks, prints)))
 
 
 def dataset_attrs(cfg: Config) -> dict:

@@ -480,19 +480,25 @@ def caption_problems(clips: list[Clip]) -> list[str]:
 
 
 def check_clips(clips: list[Clip], cfg: Config, workers: int = 1, progress: bool | None = None,
-                desc: str = "check") -> list[ClipCheck]:
-    """The ``corpus.check`` verdict on every clip, in order.
+                desc: str = "check", level: str | None = None, prepare: list[bool] | None = None) -> list[ClipCheck]:
+    """The ``corpus.check`` verdict on every clip, in order (``level``: another level;
+    ``drawn`` checks headers here, the clips a plan draws in full in plan/drawn.py).
 
-    Verdicts of ``header`` and ``full`` checks are remembered (:mod:`tsel_data.corpus.clipcache`),
-    so only new or changed files are decoded; a progress bar counts the split's clips,
-    the remembered ones done from the start.
+    ``prepare``: per clip, whether a ``full`` check writes its prepared form (default:
+    ``corpus.prepare_on_check``, for every clip). Verdicts of ``header`` and ``full``
+    checks are remembered (:mod:`tsel_data.corpus.clipcache`), so only new or changed
+    files are decoded; a progress bar counts the split's clips, the remembered ones done
+    from the start.
     """
-    level = cfg.corpus.check
+    level = level or cfg.corpus.check
+    if level == "drawn":
+        level = "header"
     if level == "none":
         return [ClipCheck(c.id, None) for c in clips]
-    prepare = level == "full" and cfg.corpus.prepare_on_check
+    if prepare is None:
+        prepare = [level == "full" and cfg.corpus.prepare_on_check] * len(clips)
     args = [(c.id, c.audio, level, cfg.corpus.min_duration, cfg.corpus.max_channels, c.offset, cfg.audio.duration,
-             cfg.audio.fs, prepare) for c in clips]
+             cfg.audio.fs, p and level == "full") for c, p in zip(clips, prepare)]
     if level == "exists":
         with bar(len(args), desc, "clip", progress) as b:
             return list(_counted(map(_check, args), b))
@@ -505,7 +511,7 @@ def check_clips(clips: list[Clip], cfg: Config, workers: int = 1, progress: bool
             if key is None:
                 out[i] = _check(args[i])  # no such file: found missing at once
             elif key in known and (verdict := _remembered(clips[i], ClipCheck(clips[i].id, *known[key]), cfg, level,
-                                                          prepare)) is not None:
+                                                          args[i][-1])) is not None:
                 out[i] = verdict
             else:  # unknown, or to be prepared: checked (again), in the pool, its prepared form made from the decode
                 todo.append(i)

@@ -179,15 +179,18 @@ def _place_sources(cfg, rng, wants: list, room: Room, centre, yaw):
 
 
 # A moving source's RIRs are computed at least every 100 ms, every 4 degrees and every
-# KNOT_TRAVEL_M of its path (docs/acoustics.md, "Moving sources").
-KNOT_HOP_S, KNOT_STEP_DEG, KNOT_TRAVEL_M = 0.1, 4.0, 0.06
+# KNOT_TRAVEL_M[kind] of its path (docs/acoustics.md, "Moving sources"). Arcs closer:
+# 6 cm left 19.8-21.4 dB against the dense reference for 40 °/s arcs in the demo's two
+# smallest rooms, 4.5 cm 23.1-24.6 dB (benchmarks/bench_moving_reflections.py accuracy).
+KNOT_HOP_S, KNOT_STEP_DEG = 0.1, 4.0
+KNOT_TRAVEL_M = {"line": 0.06, "arc": 0.045}
 
 
 def knot_hop(kind: str, speed: float, distance: float, r_h: float) -> float | None:
     """Seconds between a simulated path's knots (None: the source does not move).
 
     ``speed`` °/s seen from the array at ``distance`` m, ``r_h`` m the horizontal
-    distance: at most KNOT_HOP_S, KNOT_STEP_DEG of azimuth and KNOT_TRAVEL_M of travel.
+    distance: at most KNOT_HOP_S, KNOT_STEP_DEG of azimuth and KNOT_TRAVEL_M[kind] of travel.
     Between knots every image source moves with the delay of its group
     (acoustics/image_paths.py), the direct path exactly; what is left combs in
     proportion to the travel between knots, for arcs too (their side walls' reflections
@@ -196,7 +199,7 @@ def knot_hop(kind: str, speed: float, distance: float, r_h: float) -> float | No
     if speed <= 0:
         return None
     hop = min(KNOT_HOP_S, KNOT_STEP_DEG / (speed * distance / r_h))
-    return min(hop, KNOT_TRAVEL_M / (math.radians(speed) * distance))
+    return min(hop, KNOT_TRAVEL_M[kind] / (math.radians(speed) * distance))
 
 
 def _moving_path(cfg, rng, room: Room, centre, yaw, az0: float, r_h: float, want: "_Want", fc: np.ndarray):

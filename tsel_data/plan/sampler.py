@@ -50,7 +50,33 @@ class CatalogView:
         # recipes name their files relative to these (absolute paths without them)
         self.roots = roots or Roots()
         self.ambience = ambience  # the AmbienceSet of noise.ambience, or None
+        # clips a full check found bad since (corpus.check = "drawn", plan/drawn.py): a draw
+        # that lands on one is drawn again, so indices stay and scenes that never drew one
+        # keep every draw
+        self.excluded: frozenset[int] = frozenset()
         self._indexes: dict = {}
+
+    def exclude(self, indices) -> None:
+        """Leave the clips ``indices`` out of every draw from now on (:attr:`excluded`)."""
+        self.excluded = self.excluded | {int(i) for i in indices}
+        self.__dict__.pop("_excluded_mask", None)
+
+    def excluded_mask(self, clips: np.ndarray) -> np.ndarray:
+        """Which of the clip indices ``clips`` are excluded (bool, their shape)."""
+        if not self.excluded:
+            return np.zeros(np.shape(clips), dtype=bool)
+        if "_excluded_mask" not in self.__dict__:
+            mask = np.zeros(len(self.clips), dtype=bool)
+            mask[list(self.excluded)] = True
+            self._excluded_mask = mask
+        return self._excluded_mask[clips]
+
+    def draw(self, rng: np.random.Generator) -> int:
+        """A clip index uniformly over the split's clips, drawn again while it is excluded."""
+        while True:
+            j = int(rng.integers(len(self.clips)))
+            if j not in self.excluded:
+                return j
 
     def caption_index(self, measure: str, embeddings: str = "") -> CaptionIndex:
         """The split's captions under ``measure``, built once per view (a few seconds for
@@ -228,7 +254,7 @@ def plan_scene(cfg: Config, split: str, index: int, cat: CatalogView) -> SceneRe
     scenario = sc.scenario.sample(rng)
     n_int = int(sc.interferers.sample(rng))
 
-    t = int(rng.integers(len(cat.clips)))
+    t = cat.draw(rng)
     q = int(rng.integers(len(cat.clips[t].captions)))
     query = cat.clips[t].captions[q]
     chosen = [t]
@@ -334,6 +360,7 @@ class _QueryDraws:
             # a clip of a recording already in the scene (the chosen clips among them) is not another source
             return (cat.source_ids[clips][:, None] != taken[None, :]).all(axis=1)
 
+        excluded = cat.excluded_mask if cat.excluded else None
         if kind:
             # of the target's kind: the band of similarity to the query caption, and the
             # sound events the caption names, no more than the target's (corpus.captions.same_kind)
@@ -344,21 +371,22 @@ class _QueryDraws:
                 ok = allowed(clips)
                 return ok & np.array([same_kind(query, target, events[j]) for j in clips], dtype=bool)
 
-            j = ix.sample(rng, self.cap, sc.same_kind_similarity, np.inf, of_kind)
+            j = ix.sample(rng, self.cap, sc.same_kind_similarity, np.inf, of_kind, excluded=excluded)
             if j is not None:
                 self.pairings.append("same-kind")
                 return j
         if sc.pairing != Pairing.RANDOM:
             lo, hi = ((sc.hard_similarity, sc.caption_similarity) if sc.pairing == Pairing.HARD
                       else (-np.inf, sc.easy_similarity))
-            j = ix.sample(rng, self.cap, lo, hi, allowed)
+            j = ix.sample(rng, self.cap, lo, hi, allowed, excluded=excluded)
             if j is not None:
                 self.pairings.append(str(sc.pairing))
                 return j
         # random pairing, and the fallback of a band the split cannot fill
         for _ in range(MAX_TRIES):
             j = int(rng.integers(len(cat.clips)))
-            if j in chosen or cat.source_ids[j] in taken or ix.clip_sim(self.cap, j) > sc.caption_similarity:
+            if j in chosen or j in cat.excluded or cat.source_ids[j] in taken or \
+                    ix.clip_sim(self.cap, j) > sc.caption_similarity:
                 continue
             self.pairings.append(Pairing.RANDOM.value)
             return j
@@ -419,7 +447,7 @@ def _pick_interferer(rng, cat: CatalogView, chosen: list[int], query: tuple[int,
         target = sets[query[0]] if measure == SimilarityMeasure.LEXICON else (sets[query[0]][query[1]],)
     for _ in range(MAX_TRIES):
         j = int(rng.integers(len(cat.clips)))
-        if j in chosen or cat.source_key[j] in taken:
+        if j in chosen or j in cat.excluded or cat.source_key[j] in taken:
             continue
         if sets is not None and any(max_similarity(q, sets[j], measure) > max_sim for q in target):
             continue

@@ -22,6 +22,7 @@ from ..acoustics import simulate_rirs
 from ..acoustics.capsules import capsule_model
 from ..acoustics.descriptors import describe_rir
 from ..acoustics.diffuse import diffuse_image
+from ..acoustics.highpass import sosfilt
 from ..acoustics.image_paths import GROUPS
 from ..banks.scenes import open_bank_cached
 from ..choices import Spatial
@@ -85,8 +86,9 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray, array=None, keep: dict 
                    ) -> tuple[np.ndarray, float | None]:
     """Each source's image at the array, unscaled: float32 [S, C, T]; and the measured RT60.
     ``array``: one of the recipe's receivers (default the first, ``recipe.array``).
-    ``keep``: filled with {source: its RIR [C, L]} of static simulated sources, and
-    {source: [RIR at each knot]} of bank sources (what :func:`source_descriptors` measures).
+    ``keep``: filled with {source: its RIR [C, L]} of static simulated sources,
+    {source: [RIR at each knot]} of bank sources and {source: its knots' RirSet} of
+    simulated moving ones (what :func:`source_descriptors` measures).
 
     Static simulated sources share one batched RIR computation and convolution; moving
     and bank sources go through the time-varying renderer (dsp/timevarying.py); additive
@@ -116,9 +118,12 @@ def spatial_images(recipe: SceneRecipe, dry: np.ndarray, array=None, keep: dict 
             images[k] = diffuse_image(dry[k], fs, capsule_model(array, fs).diffuse_csd,
                                       np.random.default_rng([recipe.seed, k]))
         elif s.path:
+            kept = [] if keep is not None else None
             images[k], measured = path_image(recipe.room, array, s.path, dry[k], fs, recipe.rir_method,
-                                             recipe.seed + 1 + k)
+                                             recipe.seed + 1 + k, rirs_to=kept)
             rt60 = measured if rt60 is None else rt60
+            if kept:
+                keep[k] = kept[0]
         elif s.bank is not None:
             b = s.bank
             # a mixed receiver (stereo from FOA) mixes its base's measured RIRs
@@ -144,31 +149,55 @@ def _additive(image: np.ndarray, dry: np.ndarray, gains: np.ndarray) -> None:
             image[ch] = 0.0
 
 
-def path_image(room, array, path, dry: np.ndarray, fs: int, method: str, seed: int) -> tuple[np.ndarray, float | None]:
+def path_image(room, array, path, dry: np.ndarray, fs: int, method: str, seed: int,
+               rirs_to: list | None = None) -> tuple[np.ndarray, float | None]:
     """A simulated moving source's image [C, len(dry)] and the measured RT60 of its first
     knot: ``path`` knots (t, x, y, z), room frame. The knots' image-source parts go through
     the time-varying renderer, in groups of images that move alike, each aligned by its
     own delay between knots (acoustics/image_paths.py); the late tail they share (hybrid)
-    does not move with the source, so it is one static convolution."""
+    does not move with the source, so it is one static convolution. ``rirs_to``: the
+    knots' RirSet is appended to it."""
     knots = np.asarray(path, dtype=np.float64)
     rs = simulate_rirs(room, array, knots[:, 1:], fs, method=method, seed=seed, one_source=True, tail_apart=True,
-                       groups=GROUPS)
+                       groups=GROUPS, image_highpass=False)
     n = len(dry)
-    image = moving_image_part(dry, rs, knots[:, 0], fs)[:, :n]
+    image = moving_image_part(dry, rs, knots[:, 0], fs, n)
     if rs.tail is not None:
         image += render_static(dry, rs.tail)[:, :n]
+    if rirs_to is not None:
+        rirs_to.append(rs)
     return image, rs.rt60_measured
 
 
-def moving_image_part(dry: np.ndarray, rs, times: np.ndarray, fs: int) -> np.ndarray:
+def knot_rir(rs, j: int, fs: int) -> np.ndarray:
+    """The whole RIR [C, L] of knot ``j`` of a moving source's RirSet: its image groups
+    summed, through the DC blocker they still need, plus the tail the knots share."""
+    h = rs.rirs[j].astype(np.float64)
+    if rs.delays is not None:
+        h = h.reshape(rs.delays.shape[1], -1, h.shape[-1]).sum(axis=0)
+    if rs.highpass is not None:  # room for the blocker's response, as shoebox.py leaves it
+        h = sosfilt(rs.highpass, np.pad(h, ((0, 0), (0, int(0.05 * fs)))))
+    if rs.tail is None:
+        return h
+    out = np.zeros((h.shape[0], max(h.shape[1], rs.tail.shape[1])))
+    out[:, :rs.tail.shape[1]] = rs.tail
+    out[:, :h.shape[1]] += h
+    return out
+
+
+def moving_image_part(dry: np.ndarray, rs, times: np.ndarray, fs: int, n: int | None = None) -> np.ndarray:
     """The knots' RIRs ``rs`` (a RirSet, rirs without the shared tail) rendered along the
-    path: float32 [C, ≥ len(dry)]; image groups (``rs.delays``) each aligned by its own delay."""
+    path: float32 [C, n] (default: the whole render, ≥ len(dry)); image groups
+    (``rs.delays``) each aligned by its own delay; the DC blocker the parts still need
+    (``rs.highpass``) applied once, to the render (it commutes with it)."""
     if rs.delays is None:
-        return render_moving(dry, rs.rirs, times, fs)
-    C = rs.delays.shape[2]
-    image = np.array(render_moving(dry, rs.rirs[:, :C], times, fs, delays=rs.delays[:, 0]))
-    for g in range(1, rs.delays.shape[1]):
-        image += render_moving(dry, rs.rirs[:, g * C:(g + 1) * C], times, fs, delays=rs.delays[:, g])
+        image = render_moving(dry, rs.rirs, times, fs)
+    else:  # the groups in one render, each with its warp, summed before the inverse transforms
+        G = rs.delays.shape[1]
+        image = render_moving(dry, rs.rirs, times, fs, delays=rs.delays.reshape(len(times), -1), fold=G)
+    image = image[:, :n]
+    if rs.highpass is not None:
+        image = sosfilt(rs.highpass, image).astype(np.float32)
     return image
 
 
@@ -298,12 +327,18 @@ def _self_noise_and_clock(mix: np.ndarray, hw, fs: int) -> np.ndarray:
     return clock_warp(mix, hw, fs)
 
 
+# a moving simulated source is measured on its knot nearest the middle of its sounding
+# frames when that knot is at most this far from it (half plan.placement's longest hop)
+KNOT_NEAR_S = 0.05
+
+
 def source_descriptors(recipe: SceneRecipe, rirs: dict, active: np.ndarray) -> tuple:
     """Each source's acoustic descriptors (acoustics/descriptors.py) at the first receiver,
     from the RIRs it was rendered with (``rirs``, :func:`spatial_images`' ``keep``); None
     for positionless sources. A moving source is measured where it is in the middle of the
-    frames it sounds in: a bank source at the knot nearest then, a simulated one through a
-    static RIR simulated there (the same room, method and seed)."""
+    frames it sounds in: at the knot nearest then (a simulated one: that knot's image part
+    and the tail its knots share, :func:`knot_rir`, when the knot is within
+    :data:`KNOT_NEAR_S`; else a static RIR simulated there, the same room, method and seed)."""
     out = []
     level_ch = recipe.array.spec.level_slice()
     for k, s in enumerate(recipe.sources):
@@ -313,8 +348,13 @@ def source_descriptors(recipe: SceneRecipe, rirs: dict, active: np.ndarray) -> t
         heard = np.nonzero(active[k])[0]
         t = (heard[0] + heard[-1] + 1) / 2 * recipe.label_hop if len(heard) else recipe.duration / 2
         if s.path:
-            rir = simulate_rirs(recipe.room, recipe.array, s.position_at(t)[None], recipe.fs, method=recipe.rir_method,
-                                seed=recipe.seed + 1 + k).rirs[0]
+            times = np.asarray(s.path)[:, 0]
+            j = int(np.argmin(np.abs(times - t)))
+            if abs(times[j] - t) <= KNOT_NEAR_S:  # a planned path's knot (≤ 100 ms apart): where the source is
+                rir = knot_rir(rirs[k], j, recipe.fs)
+            else:  # knots far apart (a path by hand): a static RIR simulated where the source is then
+                rir = simulate_rirs(recipe.room, recipe.array, s.position_at(t)[None], recipe.fs,
+                                    method=recipe.rir_method, seed=recipe.seed + 1 + k).rirs[0]
         elif s.bank is not None:
             rir = rirs[k][int(np.argmin(np.abs(np.asarray(s.bank.times) - t)))]
         else:

@@ -56,7 +56,7 @@ def _draw_diffuse(cfg, rng, index: int, cat, chosen, bank_room, n: int) -> Noise
     nc = cfg.noise
     clips = ()
     if nc.diffuse == NoiseSpectrum.CLIP:
-        c = cat.clips[int(rng.integers(len(cat.clips)))]
+        c = cat.clips[cat.draw(rng)]
         clips = ((cat.roots.relative_clip(c.audio), c.offset),)
     return NoiseItem(NoiseKind.DIFFUSE, int(rng.integers(2**31 - 1)), round(float(nc.diffuse_snr.sample(rng)), 3),
                      spectrum=str(nc.diffuse), clips=clips)
@@ -65,11 +65,16 @@ def _draw_diffuse(cfg, rng, index: int, cat, chosen, bank_room, n: int) -> Noise
 def _draw_babble(cfg, rng, index: int, cat, chosen, bank_room, n: int) -> NoiseItem:
     nc = cfg.noise
     pool = np.setdiff1d(np.arange(len(cat.clips)), chosen)
-    if len(pool) < nc.babble:  # never fewer talkers than asked, silently
-        raise ConfigError(f"noise.babble = {nc.babble} asks for {nc.babble} babble clips besides a scene's "
-                          f"{len(chosen)} sources, but the split has {len(cat.clips)} usable clips; lower "
-                          f"noise.babble to at most {len(pool)}")
-    picked = rng.choice(pool, size=nc.babble, replace=False)
+    while True:  # clips a full check found bad (cat.excluded) are drawn again, the others kept as drawn
+        if len(pool) < nc.babble:  # never fewer talkers than asked, silently
+            raise ConfigError(f"noise.babble = {nc.babble} asks for {nc.babble} babble clips besides a scene's "
+                              f"{len(chosen)} sources, but the split has {len(cat.clips)} usable clips; lower "
+                              f"noise.babble to at most {len(pool)}")
+        picked = rng.choice(pool, size=nc.babble, replace=False)
+        bad = [int(i) for i in picked if int(i) in cat.excluded]
+        if not bad:
+            break
+        pool = np.setdiff1d(pool, bad)
     clips = tuple((cat.roots.relative_clip(cat.clips[i].audio), cat.clips[i].offset) for i in picked)
     az = rng.uniform(-180.0, 180.0, len(picked))
     el = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, len(picked))))  # uniform over the sphere

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 
 from ..choices import SPLIT_NAME
 from ..core.files import check_input, name_problem
-from ..core.version import __version__
+from ..core.version import RENDERER, __version__
 from ..errors import DatasetError
 from ..receivers import RECEIVERS, receiver
 from .layout import DATASET_FILE
@@ -128,9 +128,9 @@ class DatasetDoc:
 
 
 def dataset_doc(config: dict, seed: int, attrs: dict, splits: dict[str, list[ShardEntry]]) -> dict:
-    """The document ``finalize`` writes: tool, version, format version, conventions, the
-    resolved config, seed, shard attributes, and per split its scene count and shards."""
-    return {"tool": "tsel-data", "version": __version__, "format_version": FORMAT_VERSION,
+    """The document ``finalize`` writes: tool, version, renderer, format version, conventions,
+    the resolved config, seed, shard attributes, and per split its scene count and shards."""
+    return {"tool": "tsel-data", "version": __version__, "renderer": RENDERER, "format_version": FORMAT_VERSION,
             "conventions": conventions(attrs["format"], attrs.get("receivers") or ()), "config": config, "seed": seed, **attrs,
             "splits": {s: {"scenes": sum(e.scenes for e in entries), "shards": [e.to_json() for e in entries]}
                        for s, entries in splits.items()}}

@@ -10,7 +10,9 @@ Every shard is sealed by ``{split}/shard-NNNNN.seal.json``, written after its tw
 A shard is *complete* when its seal exists, holds the fingerprint the plan asks for now,
 and its files still match the seal. So a shard of another plan, of clips that changed
 since, or with a flipped bit is re-rendered by ``--resume`` and refused by ``finalize``,
-never adopted. The cheap test (size and mtime) runs on resume; ``finalize`` hashes.
+never adopted. The writer hashes each file once as it seals it; ``--resume`` and
+``finalize`` then take a file whose size and modification time are the seal's as
+sealed and hash only files that changed; ``tsel check DIR`` hashes every file.
 """
 from __future__ import annotations
 

@@ -354,6 +354,11 @@ class SceneDataset:
             self._audio(m, r, out[b])
         return out
 
+    @property
+    def audio_shape(self) -> tuple[int, int]:
+        """(C, T) of every scene's audio in this split (opens the first shard)."""
+        return self._audio_shape(self._shard(0))
+
     @staticmethod
     def _audio_shape(m: "_ShardMeta") -> tuple:
         if m.coding == AudioCoding.FLAC:

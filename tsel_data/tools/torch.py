@@ -99,16 +99,47 @@ class Dataset(torch.utils.data.Dataset):
         return len(self.scenes)
 
     def __getitem__(self, key) -> dict:
-        epoch, i = key if isinstance(key, tuple) else (self.epoch, key)
-        i = int(i)
-        if epoch != getattr(self.scenes, "epoch", epoch):
-            s = self.scenes.get(i, epoch=epoch)
-        else:
-            s = self.scenes[i]
+        epoch, i = self._key(key)
+        s = self._scene(epoch, i, audio=True)
         if self.channel_swap:
             s = random_swap(s, getattr(self.scenes, "seed", 0), epoch, i)[0]
         item = scene_item(s, self.sigma, self._query(s, epoch, i), self.with_record)
         return self.transform(item) if self.transform else item
+
+    def __getitems__(self, keys) -> list[dict]:
+        """The items of ``keys`` (what a DataLoader asks for one batch), their audio read
+        in one pass into one [B, C, T] tensor (``read_audio(out=)``), each item's a view
+        of it: in a DataLoader worker the tensor is in shared memory, so the batch crosses
+        to the trainer without a copy, and :func:`collate` returns it as it is (PyTorch's
+        default collate copies it once more)."""
+        if self.channel_swap:  # each scene through its own drawn symmetry: item by item
+            return [self[k] for k in keys]
+        keys = [self._key(k) for k in keys]
+        read = getattr(self.scenes, "read_audio", None)
+        scenes = [self._scene(e, i, audio=read is None) for e, i in keys]
+        shape = tuple(self.scenes.audio_shape) if read is not None else scenes[0].audio.shape
+        audio = _batch_tensor((len(keys), *shape))
+        if read is not None:
+            read([i for _, i in keys], out=audio.numpy())
+        else:
+            for b, s in enumerate(scenes):
+                audio[b] = torch.from_numpy(s.audio)
+        items = []
+        for b, ((e, i), s) in enumerate(zip(keys, scenes)):
+            item = scene_item(s, self.sigma, self._query(s, e, i), self.with_record, audio=audio[b])
+            items.append(self.transform(item) if self.transform else item)
+        return items
+
+    def _key(self, key) -> tuple[int, int]:
+        epoch, i = key if isinstance(key, tuple) else (self.epoch, key)
+        return epoch, int(i)
+
+    def _scene(self, epoch: int, i: int, audio: bool):
+        if epoch != getattr(self.scenes, "epoch", epoch):
+            return self.scenes.get(i, epoch=epoch)
+        if not audio:
+            return self.scenes.get(i, audio=False)
+        return self.scenes[i]
 
     def _query(self, scene, epoch: int, i: int) -> str:
         return pick_query(scene, self.query, getattr(self.scenes, "seed", 0), epoch, i,
@@ -125,11 +156,22 @@ def pick_query(scene, how: str, seed: int, epoch: int, i: int, caption_similarit
     return pool[int(rng.integers(len(pool)))]
 
 
-def scene_item(s, sigma: float, query: str, with_record: bool = False) -> dict:
-    """A scene as a dict of tensors and strings (the module docstring lists the keys)."""
+def _batch_tensor(shape: tuple) -> "torch.Tensor":
+    """An uninitialised float32 tensor; in a DataLoader worker, in shared memory (as
+    PyTorch's default collate makes its batches there), so sending it costs no copy."""
+    if torch.utils.data.get_worker_info() is None:
+        return torch.empty(shape, dtype=torch.float32)
+    n = int(np.prod(shape))
+    storage = torch.empty(0, dtype=torch.float32)._typed_storage()._new_shared(n)
+    return torch.empty(0, dtype=torch.float32).new(storage).resize_(shape)
+
+
+def scene_item(s, sigma: float, query: str, with_record: bool = False, audio=None) -> dict:
+    """A scene as a dict of tensors and strings (the module docstring lists the keys);
+    ``audio``: the tensor to give as its audio (default the scene's own)."""
     enc = scene_targets(s, sigma)
     item = {
-        "audio": torch.from_numpy(s.audio),
+        "audio": torch.from_numpy(s.audio) if audio is None else audio,
         "azimuth": torch.from_numpy(s.azimuth),
         "elevation": torch.from_numpy(s.elevation),
         "distance": torch.from_numpy(s.distance),
@@ -214,7 +256,9 @@ class StreamingDataset(torch.utils.data.IterableDataset):
 
 def collate(items: list[dict]) -> dict:
     """Batch items whose source count S differs (pad with NaN / False / zeros); values
-    that are not tensors (query, scene_id, record) become lists."""
+    that are not tensors (query, scene_id, record) become lists. Tensors that are already
+    the rows of one batch tensor, in order (the audio :meth:`Dataset.__getitems__` reads),
+    are that tensor, not a copy."""
     n_src = max(it["azimuth"].shape[0] for it in items)
     out = {}
     for key in items[0]:
@@ -225,8 +269,24 @@ def collate(items: list[dict]) -> dict:
         if key in ("azimuth", "elevation", "distance", "active", "accdoa"):
             fill = False if key == "active" else (0.0 if key == "accdoa" else float("nan"))
             vals = [torch.cat([v, torch.full((n_src - v.shape[0], *v.shape[1:]), fill, dtype=v.dtype)]) for v in vals]
-        out[key] = torch.stack(vals)
+        out[key] = _rows_of_one(vals)
+        if out[key] is None:
+            out[key] = torch.stack(vals)
     return out
+
+
+def _rows_of_one(vals: list) -> "torch.Tensor | None":
+    """The tensor whose rows ``vals`` are, when they are the consecutive rows of one
+    contiguous tensor filling its storage (else None)."""
+    first = vals[0]
+    storage, n = first.untyped_storage(), first.numel()
+    if not first.is_contiguous() or storage.nbytes() != len(vals) * n * first.element_size():
+        return None
+    for b, v in enumerate(vals):
+        if (v.untyped_storage().data_ptr() != storage.data_ptr() or v.storage_offset() != b * n
+                or v.shape != first.shape or v.dtype != first.dtype or not v.is_contiguous()):
+            return None
+    return torch.empty(0, dtype=first.dtype).set_(storage, 0, (len(vals), *first.shape))
 
 
 pad_sources = collate  # the name of earlier releases
