@@ -65,6 +65,33 @@ def test_a_bit_flip_is_rendered_again_on_resume_and_refused_by_finalize(cfg, ref
     assert check_dataset(out).ok and data_files(out) == data_files(reference)
 
 
+def test_shards_of_another_renderer_are_rendered_again_on_resume(cfg, reference, tmp_path):
+    """A dataset begun by an older tsel-data (its seals name renderer 1, or none) and
+    resumed by this one is never a mix of the two: those shards are rendered again, and
+    every seal and dataset.json then name this renderer."""
+    from tsel_data.core.version import RENDERER
+    out = str(tmp_path / "ds")
+    shutil.copytree(reference, out)
+    os.remove(os.path.join(out, "dataset.json"))
+    old = os.path.join(out, "train", "shard-00000.seal.json")
+    with open(old) as f:
+        seal = json.load(f)
+    assert seal["renderer"] == RENDERER
+    del seal["renderer"]  # as renderer 1 (tsel-data 0.2.0) wrote it
+    with open(old, "w") as f:
+        json.dump(seal, f)
+    before = os.stat(os.path.join(out, "train", "shard-00000.h5")).st_mtime_ns
+    kept = os.stat(os.path.join(out, "train", "shard-00001.h5")).st_mtime_ns
+    generate(cfg, out, workers=1, progress=False, resume=True)
+    assert os.stat(os.path.join(out, "train", "shard-00000.h5")).st_mtime_ns != before
+    assert os.stat(os.path.join(out, "train", "shard-00001.h5")).st_mtime_ns == kept
+    with open(old) as f:
+        assert json.load(f)["renderer"] == RENDERER
+    with open(os.path.join(out, "dataset.json")) as f:
+        assert json.load(f)["renderer"] == RENDERER
+    assert check_dataset(out).ok and data_files(out) == data_files(reference)
+
+
 def test_shards_of_another_config_are_never_adopted(cfg, reference, tmp_path):
     out = str(tmp_path / "ds")
     shutil.copytree(reference, out)

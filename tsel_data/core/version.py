@@ -1,12 +1,12 @@
 """The package version (its own module, so any layer can read it without importing the package root)."""
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 # The renderer: what a scene's bytes depend on besides its recipe and its clips. Raised,
 # deliberately, when a faster or better path cannot give the same bytes; dataset.json and
 # recipe releases record it (a document without it: renderer 1), and a rebuild by another
 # renderer names the tsel-data version that made the release, which rebuilds it bit for bit.
 #   1: up to 0.2.0
-#   2: after 0.2.0: moving simulated sources' knots at once, their DC blocker after the
+#   2: 0.3.0: moving simulated sources' knots at once, their DC blocker after the
 #      render, arcs' knots every 4.5 cm (issue 43); rigid spheres' images as point sources
 #      and interpolated binaural HRIRs blended time-aligned (issue 40); other static
 #      scenes and bank walks as renderer 1

@@ -5,10 +5,11 @@ Every shard is sealed by ``{split}/shard-NNNNN.seal.json``, written after its tw
 - ``fingerprint``: what the shard was made from: its recipes as planned, and the size and
   modification time (``corpus.fingerprint = "hash"``: the size and sha256) of every clip
   and bank file they read (:func:`shard_fingerprint`);
-- ``h5`` and ``json``: size, modification time (ns) and sha256 of each file.
+- ``h5`` and ``json``: size, modification time (ns) and sha256 of each file;
+- ``renderer``: the renderer that wrote it (core/version.py; a seal without one: 1).
 
 A shard is *complete* when its seal exists, holds the fingerprint the plan asks for now,
-and its files still match the seal. So a shard of another plan, of clips that changed
+its files still match the seal, and this renderer wrote it. So a shard of another plan, of clips that changed
 since, or with a flipped bit is re-rendered by ``--resume`` and refused by ``finalize``,
 never adopted. The writer hashes each file once as it seals it; ``--resume`` and
 ``finalize`` then take a file whose size and modification time are the seal's as
@@ -23,6 +24,7 @@ from dataclasses import dataclass
 
 from ..core.digest import sha256_file
 from ..core.files import is_regular
+from ..core.version import RENDERER
 from .layout import Layout
 
 SEAL_VERSION = 1
@@ -110,14 +112,18 @@ class Seal:
     fingerprint: str
     h5: FileSeal
     json: FileSeal
+    renderer: int = RENDERER
 
     def to_json(self) -> dict:
         return {"seal_version": SEAL_VERSION, "fingerprint": self.fingerprint,
-                "h5": vars(self.h5), "json": vars(self.json)}
+                "h5": vars(self.h5), "json": vars(self.json), "renderer": self.renderer}
 
     @classmethod
     def from_json(cls, d: dict) -> "Seal":
-        return cls(str(d["fingerprint"]), FileSeal(**d["h5"]), FileSeal(**d["json"]))
+        renderer = d.get("renderer", 1)
+        if not isinstance(renderer, int) or isinstance(renderer, bool):
+            raise TypeError("renderer")
+        return cls(str(d["fingerprint"]), FileSeal(**d["h5"]), FileSeal(**d["json"]), renderer)
 
 
 def read_seal(layout: Layout, split: str, shard: int) -> Seal | None:
@@ -143,6 +149,8 @@ def shard_state(layout: Layout, split: str, shard: int, fingerprint: str, deep: 
         return ("missing", "not rendered") if not any(have) else ("damaged", "no seal (an interrupted write)")
     if seal.fingerprint != fingerprint:
         return "stale", "made from another plan, or from clips or a bank that changed since"
+    if seal.renderer != RENDERER:  # a dataset is one renderer's: dataset.json names one
+        return "stale", f"rendered by renderer {seal.renderer} (another tsel-data); this one renders with {RENDERER}"
     if not all(have):  # a file of a sealed shard was deleted: render it (again)
         return "missing", "a file is missing"
     for path, fs in ((h5, seal.h5), (js, seal.json)):
