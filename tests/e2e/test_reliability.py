@@ -402,10 +402,10 @@ def _rss_bytes() -> int:
 
 @pytest.mark.slow
 @pytest.mark.skipif(not os.path.exists("/proc/self/statm"), reason="needs /proc")
-def test_soak_2000_scenes_memory_stays_flat(demo_corpus, tmp_path, monkeypatch):
+def test_soak_1000_scenes_memory_stays_flat(demo_corpus, tmp_path, monkeypatch):
     import tsel_data.job.shards as gen
 
-    cfg = load_config(preset="demo", corpus_dir=demo_corpus, splits={"train": 2000, "val": 0, "test": 0},
+    cfg = load_config(preset="demo", corpus_dir=demo_corpus, splits={"train": 1000, "val": 0, "test": 0},
                       overrides=["audio.duration=1.0", "audio.fs=8000", "output.shard_size=20",
                                  'room.rt60=["uniform", 0.15, 0.25]', 'room.rir_method="hybrid"'])
     rss = []
@@ -419,13 +419,13 @@ def test_soak_2000_scenes_memory_stays_flat(demo_corpus, tmp_path, monkeypatch):
     monkeypatch.setattr(gen, "render_shard", measured)
     out = str(tmp_path / "soak")
     t0 = time.perf_counter()
-    s = generate(cfg, out, workers=1, progress=False, allow_reuse=True)  # 2000 scenes of 60 clips, on purpose
+    s = generate(cfg, out, workers=1, progress=False, allow_reuse=True)  # 1000 scenes of 60 clips, on purpose
     seconds = time.perf_counter() - t0
-    assert s["splits"]["train"] == 2000 and len(rss) == 100
+    assert s["splits"]["train"] == 1000 and len(rss) == 50
     q = len(rss) // 4
     first, last = np.median(rss[5:q + 5]), np.median(rss[-q:])
     growth_mb = (last - first) / 1e6
-    print(f"soak: 2000 scenes in {seconds:.1f} s, RSS {first / 1e6:.1f} -> {last / 1e6:.1f} MB "
+    print(f"soak: 1000 scenes in {seconds:.1f} s, RSS {first / 1e6:.1f} -> {last / 1e6:.1f} MB "
           f"(growth {growth_mb:.2f} MB, max {max(rss) / 1e6:.1f} MB)")
     assert growth_mb < 8.0, rss
     assert max(rss) - min(rss[5:]) < 40e6
