@@ -69,7 +69,7 @@ def tau_shaped_bank(path, L=7200, n=360, seed=0):
     room "lines": straight lines (positions every 5 cm, the direct path at its fractional
     delay)."""
     from tsel_data.core.geometry import cart_to_sph
-    from tsel_data.dsp.timevarying import fractional_kernel
+    from tsel_data.dsp.delaypath import fractional_kernel
 
     rng = np.random.default_rng(seed)
     t = np.arange(L) / FS

@@ -11,6 +11,7 @@ knot cycle, broadband and per octave band 250 Hz - 8 kHz.
 import numpy as np
 import pytest
 
+import tsel_data.dsp.delaypath as dp
 import tsel_data.dsp.timevarying as tv
 from tsel_data.acoustics import SOUND_SPEED, simulate_rirs
 from tsel_data.acoustics.metrics import RIPPLE_BANDS as BANDS
@@ -106,7 +107,7 @@ def test_arcs_are_rendered_as_before():
     for fmt in ("foa", "mic4"):
         arr = ArrayPose(fmt, centre, 0.0, 0.11 if fmt == "mic4" else None)
         rirs = simulate_rirs(room, arr, pts, FS, "hybrid", seed=0, one_source=True).rirs
-        assert tv._delay_groups(tv._steps_from("auto", rirs, t * FS), rirs.shape[1]) is None
+        assert dp._delay_groups(dp._steps_from("auto", rirs, t * FS), rirs.shape[1]) is None
         assert np.array_equal(render_moving(x, rirs, t, FS), render_moving(x, rirs, t, FS, delays=None))
 
 
@@ -233,7 +234,7 @@ def test_a_moving_pure_delay_is_a_continuous_time_warp():
     h = np.zeros((len(times), 1, L), dtype=np.float32)
     for k, dk in enumerate(d):
         n0 = int(np.rint(dk))
-        h[k, 0, n0 - 16 : n0 + 17] = tv.fractional_kernel([dk - n0])[0]
+        h[k, 0, n0 - 16 : n0 + 17] = dp.fractional_kernel([dk - n0])[0]
     y = render_moving(x, h, times, FS)[0]
     # the ideal: sample m receives x at the emission time n with n + d(n) = m
     n = np.arange(T, dtype=np.float64)
@@ -276,9 +277,9 @@ def reference(x, h, times, fs, delays):
     h = np.asarray(h, np.float64)
     K, C, L = h.shape
     T, p = len(x), np.asarray(times, np.float64) * fs
-    groups = tv._delay_groups(tv._steps_from(delays, h.astype(np.float32), p), C) or [(np.arange(C), None)]
+    groups = dp._delay_groups(dp._steps_from(delays, h.astype(np.float32), p), C) or [(np.arange(C), None)]
     y = np.zeros((C, T + L - 1))
-    H = tv.FD_HALF
+    H = dp.FD_HALF
     j = np.arange(-H, H + 1)
     for chans, sig in groups:
         if sig is None:
@@ -293,12 +294,12 @@ def reference(x, h, times, fs, delays):
         whole = np.rint(s)
         src = (t - whole).astype(int)[:, None] - j
         xv = np.where((src >= 0) & (src < T), x[np.clip(src, 0, T - 1)], 0.0)
-        z = np.sum(xv * tv.fractional_kernel(s - whole), axis=1)
+        z = np.sum(xv * dp.fractional_kernel(s - whole), axis=1)
         z[((t - whole) < 0) | ((t - whole) >= T)] = 0.0
         w = _hat(p + sig, t)
         for k in range(K):
             I = int(np.rint(sig[k]))
-            u = np.convolve(w[k] * z, tv.fractional_kernel([-(sig[k] - I)])[0])  # u[0] is at t0 - H - I
+            u = np.convolve(w[k] * z, dp.fractional_kernel([-(sig[k] - I)])[0])  # u[0] is at t0 - H - I
             start = t0 - H - I
             for c in chans:
                 full = np.convolve(u, h[k, c])
@@ -331,7 +332,7 @@ def test_the_engine_is_exact_against_the_delay_aware_model(monkeypatch, case, B)
         d = d[:, None] + np.linspace(0, 1, K)[:, None] * np.array([[-12.0, 0.0, 14.0]])
     elif case == "mixed":  # channel 2 does not move
         d = np.stack([d, d + 0.2, np.full(K, 50.0)], -1)
-    groups = tv._delay_groups(tv._steps_from(d, h, times * 8000), C)
+    groups = dp._delay_groups(dp._steps_from(d, h, times * 8000), C)
     assert groups is not None and len(groups) == {"shared": 1, "per-channel": 3, "mixed": 2}[case]
     y = render_moving(x, h, times, 8000, delays=d)
     assert y.shape == (C, T + L - 1) and y.dtype == np.float32
@@ -382,9 +383,9 @@ def test_estimated_steps_match_the_geometry(fmt):
     rirs, t, arr, pts = _line_pass(fmt, dur=3.0)
     mics = array_to_room(arr.mics(), arr.centre, arr.yaw)
     d = np.linalg.norm(pts[:, None, :] - mics[None], axis=-1) / SOUND_SPEED * FS  # [K, C]
-    steps, ok, ref, coincident = tv._delay_steps(rirs, t * FS)
+    steps, ok, ref, coincident = dp._delay_steps(rirs, t * FS)
     assert coincident == (fmt == "foa") and ok.all()
-    est = tv.delay_steps(rirs, t, FS)
+    est = dp.delay_steps(rirs, t, FS)
     assert est.shape == (len(t) - 1, rirs.shape[1])
     assert np.max(np.abs(est - np.diff(d, axis=0))) < 0.1
     assert np.max(np.abs(np.diff(d, axis=0))) > 4  # the pass really moves the direct path
@@ -396,9 +397,9 @@ def test_rirs_without_a_common_direct_path_are_not_warped():
     rng = np.random.default_rng(5)
     h = rng.standard_normal((20, 4, 500)).astype(np.float32)
     times = np.linspace(0, 2, 20)
-    assert tv._delay_groups(tv._steps_from("auto", h, times * 8000), 4) is None
+    assert dp._delay_groups(dp._steps_from("auto", h, times * 8000), 4) is None
     same = np.repeat(h[:1], 20, axis=0)
-    assert tv._delay_groups(tv._steps_from("auto", same, times * 8000), 4) is None
+    assert dp._delay_groups(dp._steps_from("auto", same, times * 8000), 4) is None
 
 
 def test_labels_follow_the_moving_direct_path():
@@ -417,7 +418,7 @@ def test_labels_follow_the_moving_direct_path():
     h = np.zeros((K, 4, 400), dtype=np.float32)
     for k in range(K):
         n0 = int(np.rint(d[k]))
-        h[k, :, n0 - 16 : n0 + 17] = np.outer(foa_gains(az[k], el[k]), tv.fractional_kernel([d[k] - n0])[0])
+        h[k, :, n0 - 16 : n0 + 17] = np.outer(foa_gains(az[k], el[k]), dp.fractional_kernel([d[k] - n0])[0])
     hop = FS // 10
     centres = np.arange(30) * hop + hop // 2
     x = np.zeros(3 * FS, dtype=np.float32)

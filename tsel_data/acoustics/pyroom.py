@@ -20,7 +20,6 @@ absorbing walls: it needs RT60 ≥ 24 ln(10) V / (c S) (V volume, S surface, c =
 from __future__ import annotations
 
 from functools import lru_cache
-from itertools import combinations
 
 import numpy as np
 import pyroomacoustics as pra

@@ -80,7 +80,7 @@ def receiver_problems(cfg: Config, where: str) -> list[ConfigError]:
     fmt = cfg.scene.format
     if canonical(fmt) is None:
         return []  # field_problems names it, with the choices
-    spec, a = receiver(fmt), cfg.array
+    a = cfg.array
     out: list[ConfigError] = []
     names = [fmt, *cfg.scene.receivers]
     unknown = [r for r in cfg.scene.receivers if not isinstance(r, str) or canonical(r) is None]

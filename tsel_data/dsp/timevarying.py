@@ -81,8 +81,7 @@ import numpy as np
 
 from ..core.geometry import interpolate_positions  # noqa: F401  (labels use the renderer's blend; documented here)
 from . import fft
-from .delaypath import (FD_HALF, GROUP_TOL, MIN_STEP, _delay_groups, _delay_steps, _farrow_filter, _steps_from,
-                        _undo_spectra, _warp, delay_steps, farrow_coefficients, fractional_kernel)
+from .delaypath import FD_HALF, _delay_groups, _farrow_filter, _steps_from, _undo_spectra, _warp
 
 _GROUP_BYTES = 2 << 20  # RIR spectra of one group of knots: about one core's L2
 
@@ -319,7 +318,7 @@ def _partitioned(x: np.ndarray, p: np.ndarray, e: np.ndarray, h, groups=None, fo
     groups: None, or [(channels, σ [K] or None), ...] from :func:`_delay_groups`.
     """
     C, L = h[0].shape
-    T, K = len(x), len(p)
+    T = len(x)
     streams = _streams(x, p, e, groups, C)
     warped = any(s.frac is not None for s in streams)
     # Grid positions of knot k's input: [lo_k, hi_k), the union over streams. Nominally

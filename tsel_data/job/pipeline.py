@@ -33,7 +33,7 @@ from ..scene.recipe import plan_roots
 from ..store.layout import Layout
 from ..store.lock import DatasetLock
 from ..store.plans import ROOT_KEYS, has_plan, plan_doc, portable_roots, read_plan_doc, read_plan_lines, stored_config
-from .shards import Plan, expected_fingerprint, finalize, open_plan, plan_shard_tasks, render_shard, render_shards
+from .shards import finalize, open_plan, render_shards
 
 
 # --- plan ----------------------------------------------------------------------------------
