@@ -210,18 +210,24 @@ def ask_what_at(scene: SceneFacts, vocab: Vocabulary) -> list:
     return out
 
 
+def _binned(scene: SceneFacts, axis, label: str, eligible):
+    """(k, name, values, bin) of each named source ``eligible(k)`` whose ``label`` values
+    (e.g. "distance") agree on one bin of ``axis`` over every active frame."""
+    for k, name in enumerate(scene.names):
+        if name is None or not eligible(k):
+            continue
+        values = getattr(scene.sources[k], label)
+        b, why = axis.agreed(values)
+        if why == "ok":
+            yield k, name, values, b
+
+
 def ask_distance(scene: SceneFacts, vocab: Vocabulary) -> list:
     axis = vocab.distance
     if axis is None:
         return []
     out = []
-    for k, name in enumerate(scene.names):
-        if name is None or not scene.heard(k):
-            continue
-        d = scene.sources[k].distance
-        b, why = axis.agreed(d)
-        if why != "ok":
-            continue
+    for k, name, d, b in _binned(scene, axis, "distance", scene.heard):
         if axis.step:
             near = [b + s * axis.step for s in (-1, 1, -2, 2, 3, 4)]
             wrong = tuple(vocab.answer("distance", axis.of(x)) for x in near if x >= 0)
@@ -243,13 +249,7 @@ def ask_elevation(scene: SceneFacts, vocab: Vocabulary) -> list:
     if axis is None:
         return []
     out = []
-    for k, name in enumerate(scene.names):
-        if name is None or not scene.placed(k):
-            continue
-        el = scene.sources[k].elevation
-        b, why = axis.agreed(el)
-        if why != "ok":
-            continue
+    for k, name, el, b in _binned(scene, axis, "elevation", scene.placed):
         depth = _depths(axis, el, b)
         if depth < scene.angle:
             continue
